@@ -1,0 +1,310 @@
+"""`LocoEnv`: the one stepping loop shared by every body and task.
+
+It is a mushroom-rl `Environment` (reset -> obs; step -> obs, reward, absorbing, info); the
+Gymnasium interface is a thin adapter around it (`gym_adapter.py`).
+
+Safe behaviour on bad input (documented in the README):
+* wrong action shape or a NaN/inf action raises `ValueError`; finite actions outside [-1, 1] are clipped;
+* a simulation that diverges (MuJoCo's bad-qacc warning, non-finite state) ends the episode with a
+  terminal transition: `absorbing=True`, reward 0, the last finite observation and
+  `info["diverged"] = True`; stepping again before `reset()` raises `RuntimeError`.
+"""
+from __future__ import annotations
+
+from typing import Any, Callable, Sequence
+
+import mujoco
+import numpy as np
+from mushroom_rl.core import Environment, MDPInfo
+from mushroom_rl.utils.spaces import Box
+
+from loco_il.environments.body import Body
+from loco_il.environments.observations import (ObservationSpec, joint_layout, observation_spec)
+from loco_il.environments.tasks import RewardFn, StepContext, Task
+
+_DIVERGENCE_WARNINGS = (mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQPOS,
+                        mujoco.mjtWarning.mjWARN_BADQVEL)
+
+InitStateSampler = Callable[[np.random.Generator], tuple[np.ndarray, np.ndarray]]
+
+
+def keyframe_pose(spec: mujoco.MjSpec, key_name: str | None) -> dict[str, np.ndarray]:
+    """A keyframe's qpos split by joint name, read from the spec (survives joint removal)."""
+    keys = list(spec.keys)
+    key = next((k for k in keys if k.name == key_name), None) if key_name else None
+    if key is None:
+        return {}
+    sizes = {mujoco.mjtJoint.mjJNT_FREE: 7, mujoco.mjtJoint.mjJNT_BALL: 4}
+    pose, adr = {}, 0
+    qpos = np.asarray(key.qpos)
+    for joint in spec.joints:
+        n = sizes.get(joint.type, 1)
+        if adr + n <= qpos.size:
+            pose[joint.name] = qpos[adr:adr + n].copy()
+        adr += n
+    return pose
+
+
+def remove_elements(spec: mujoco.MjSpec, joints: Sequence[str], actuators: Sequence[str]) -> None:
+    """Delete joints (welding their bodies to the parent) and actuators, plus everything that refers to them."""
+    joints, actuators = set(joints), set(actuators)
+    for act in list(spec.actuators):
+        if act.name in actuators or act.target in joints:
+            spec.delete(act)
+    for sensor in list(spec.sensors):
+        if sensor.objname in joints or sensor.objname in actuators:
+            spec.delete(sensor)
+    for eq in list(spec.equalities):
+        if eq.name1 in joints or eq.name2 in joints:
+            spec.delete(eq)
+    for name in joints:
+        joint = spec.joint(name)
+        if joint is None:
+            raise KeyError(f"cannot remove joint {name!r}: the model has no such joint")
+        spec.delete(joint)
+    for key in list(spec.keys):   # keyframes no longer match the qpos size; poses are kept by name
+        spec.delete(key)
+
+
+class LocoEnv(Environment):
+    """A locomotion MDP for one body and task. Create it from a Task-ID with `LocoEnv.make`."""
+
+    def __init__(self, body: Body, task: str, dataset_type: str, *, variant: str | None = None,
+                 pomdp: bool = False, hide: Sequence[str] = (), reward: RewardFn | None = None,
+                 randomization: Any = None, randomize_every: int = 1, seed: int | None = None,
+                 render_mode: str | None = None, horizon: int | None = None,
+                 init_state_sampler: InitStateSampler | None = None,
+                 render_size: tuple[int, int] = (480, 640)):
+        self.body = body
+        self.body_name = body.name
+        self.task_name = task
+        self.dataset_type = dataset_type
+        self.variant = variant
+        self.pomdp = pomdp
+        self.task: Task = body.tasks[task]
+        self.reward_fn: RewardFn = reward if reward is not None else self.task.reward
+        self.render_mode = render_mode
+        self.render_size = render_size
+        self.init_state_sampler = init_state_sampler
+        self._rng = np.random.default_rng(seed)
+        self._seed = seed
+
+        self.base_spec = self._build_spec()
+        self.randomization = randomization
+        self.randomize_every = max(1, int(randomize_every))
+        self._episodes = 0
+        self._compile(self.base_spec)
+
+        layout = self._layout
+        command_names = tuple(self.task.command_names)
+        self.full_obs_spec: ObservationSpec = observation_spec(layout, command_names)
+        hide_groups = tuple(body.pomdp_hide) if pomdp else ()
+        hidden_names = tuple(h for h in hide if h not in set(self.full_obs_spec.groups))
+        hidden_groups = hide_groups + tuple(h for h in hide if h in set(self.full_obs_spec.groups))
+        self.obs_mask = self.full_obs_spec.mask(hidden_groups, hidden_names)
+        self.obs_spec: ObservationSpec = self.full_obs_spec.masked(self.obs_mask)
+        self._mask_all = bool(self.obs_mask.all())
+
+        obs_dim = self.obs_spec.dim
+        act_dim = self.model.nu
+        horizon = horizon or self.task.horizon
+        mdp_info = MDPInfo(Box(-np.inf * np.ones(obs_dim), np.inf * np.ones(obs_dim)),
+                           Box(-np.ones(act_dim), np.ones(act_dim)), gamma=0.99, horizon=horizon,
+                           dt=self.dt)
+        super().__init__(mdp_info)
+        self._command = np.zeros(0)
+        self._steps = 0
+        self._needs_reset = True
+        self._last_obs = np.zeros(obs_dim)
+        self._renderer = None
+        self._viewer = None
+
+    # ------------------------------------------------------------------ construction
+    @classmethod
+    def make(cls, task_id: str, **kwargs: Any) -> "LocoEnv":
+        """Create an env from a Task-ID such as "UnitreeH1.walk.real" (missing parts take defaults)."""
+        from loco_il.environments.registry import make
+        return make(task_id, **kwargs)
+
+    @staticmethod
+    def get_all_task_names() -> list[str]:
+        from loco_il.environments.registry import get_all_task_names
+        return get_all_task_names()
+
+    @property
+    def task_id(self) -> str:
+        body = self.body_name + (f"-{self.variant}" if self.variant else "")
+        return f"{body}.{self.task_name}.{self.dataset_type}" + (".pomdp" if self.pomdp else "")
+
+    def _build_spec(self) -> mujoco.MjSpec:
+        spec = self.body.load_spec()
+        if self.body.spec_edit is not None:
+            self.body.spec_edit(spec)
+        self._init_pose = keyframe_pose(spec, self.body.init_keyframe)
+        if self.body.joints_to_remove or self.body.actuators_to_remove or self._init_pose:
+            remove_elements(spec, self.body.joints_to_remove, self.body.actuators_to_remove)
+        if self.body.timestep is not None:
+            spec.option.timestep = self.body.timestep
+        if self.variant:
+            from loco_il.environments.variants import apply_variant
+            apply_variant(spec, self.body_name, self.variant)
+        return spec
+
+    def _compile(self, spec: mujoco.MjSpec) -> None:
+        """(Re)compile the model; everything derived from it (inertia, layout, ranges) follows."""
+        self.model = spec.compile()
+        self.data = mujoco.MjData(self.model)
+        self.n_substeps = max(1, int(round(self.body.control_dt / self.model.opt.timestep)))
+        self.dt = self.n_substeps * self.model.opt.timestep
+        self._layout = joint_layout(self.model, self.body.exclude_root_xy)
+        limited = self.model.actuator_ctrllimited.astype(bool)
+        lo = np.where(limited, self.model.actuator_ctrlrange[:, 0], -1.0)
+        hi = np.where(limited, self.model.actuator_ctrlrange[:, 1], 1.0)
+        self._ctrl_center, self._ctrl_half = (hi + lo) / 2, (hi - lo) / 2
+        self._init_qpos = self.model.qpos0.copy()
+        for j in range(self.model.njnt):
+            name = mujoco.mj_id2name(self.model, mujoco.mjtObj.mjOBJ_JOINT, j)
+            if name in self._init_pose:
+                adr = self.model.jnt_qposadr[j]
+                self._init_qpos[adr:adr + self._init_pose[name].size] = self._init_pose[name]
+        self._root_body = int(self.model.jnt_bodyid[0]) if self.model.njnt else 1
+        self._point_body = (mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, self.task.velocity_point)
+                            if self.task.velocity_point not in ("root", "com") else self._root_body)
+        if getattr(self, "_renderer", None) is not None:   # the renderer is bound to the old model
+            self._renderer.close()
+            self._renderer = None
+
+    def randomize(self) -> None:
+        """Draw new physical parameters: edit a copy of the base spec and recompile."""
+        if self.randomization is None:
+            raise RuntimeError("this env has no randomization config; pass randomization=... to make()")
+        spec = self.base_spec.copy()
+        self.randomization.apply(spec, self._rng)
+        self._compile(spec)
+
+    # ------------------------------------------------------------------ mushroom-rl interface
+    def seed(self, seed: int | None) -> None:
+        self._seed = seed
+        self._rng = np.random.default_rng(seed)
+
+    def reset(self, state: np.ndarray | None = None) -> np.ndarray:
+        """Start an episode. `state`, if given, is a full simulator state (qpos, qvel) concatenated."""
+        if self.randomization is not None and self._episodes % self.randomize_every == 0:
+            self.randomize()
+        self._episodes += 1
+        mujoco.mj_resetData(self.model, self.data)
+        if state is not None:
+            state = np.asarray(state, dtype=np.float64)
+            if state.shape != (self.model.nq + self.model.nv,):
+                raise ValueError(f"reset state must have shape ({self.model.nq + self.model.nv},) = (nq + nv); "
+                                 f"got {state.shape}")
+            qpos, qvel = state[:self.model.nq], state[self.model.nq:]
+        elif self.init_state_sampler is not None:
+            qpos, qvel = self.init_state_sampler(self._rng)
+        else:
+            qpos, qvel = self._noisy_init_state()
+        self.data.qpos[:], self.data.qvel[:] = qpos, qvel
+        self._command = (self.task.command_sampler(self._rng) if self.task.command_sampler
+                         else np.zeros(0))
+        mujoco.mj_forward(self.model, self.data)
+        self._steps = 0
+        self._needs_reset = False
+        self._warnings0 = self._divergence_count()
+        self._last_obs = self._observation()
+        return self._last_obs.copy()
+
+    def _noisy_init_state(self) -> tuple[np.ndarray, np.ndarray]:
+        kind, scale = self.body.reset_noise
+        nq, nv = self.model.nq, self.model.nv
+        qpos = self._init_qpos + self._rng.uniform(-scale, scale, nq)
+        if kind == "uniform_normal":
+            qvel = scale * self._rng.standard_normal(nv)
+        else:
+            qvel = self._rng.uniform(-scale, scale, nv)
+        return qpos, qvel
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, dict]:
+        if self._needs_reset:
+            raise RuntimeError("step() called before reset() or after a diverged episode; call reset() first")
+        a = np.asarray(action, dtype=np.float64).reshape(-1) if np.ndim(action) <= 1 else np.asarray(action)
+        if a.shape != (self.model.nu,):
+            raise ValueError(f"{self.task_id}: action must have shape ({self.model.nu},), got {np.shape(action)}")
+        if not np.isfinite(a).all():
+            raise ValueError(f"{self.task_id}: action contains NaN or inf: {a}")
+        a = np.clip(a, -1.0, 1.0)
+        self.data.ctrl[:] = self._ctrl_center + a * self._ctrl_half
+        xy_before = self._velocity_point()
+        mujoco.mj_step(self.model, self.data, nstep=self.n_substeps)
+        self._steps += 1
+
+        if self._diverged():
+            self._needs_reset = True
+            info = {"terminated": True, "diverged": True, "reward_terms": {}}
+            return self._last_obs.copy(), 0.0, True, info
+
+        if self.task.needs_contact_forces:
+            mujoco.mj_rnePostConstraint(self.model, self.data)
+        if self.task.resample_command_every and self._steps % self.task.resample_command_every == 0:
+            self._command = self.task.command_sampler(self._rng)
+        ctx = StepContext(self.model, self.data, self.dt, a, xy_before, self._velocity_point(), self._command)
+        terminated = bool(self.task.termination(ctx)) if self.task.termination else False
+        ctx.healthy = not terminated
+        reward, terms = self.reward_fn(ctx)
+        obs = self._observation()
+        self._last_obs = obs
+        info = {"terminated": terminated, "diverged": False, "reward_terms": terms}
+        return obs.copy(), float(reward), terminated, info
+
+    # ------------------------------------------------------------------ helpers
+    def _velocity_point(self) -> np.ndarray:
+        if self.task.velocity_point == "com":
+            return (self.model.body_mass @ self.data.xipos)[:2] / self.model.body_mass.sum()
+        return self.data.xpos[self._point_body, :2].copy()
+
+    def _divergence_count(self) -> int:
+        return int(sum(self.data.warning[w].number for w in _DIVERGENCE_WARNINGS))
+
+    def _diverged(self) -> bool:
+        return (self._divergence_count() != self._warnings0
+                or not np.isfinite(self.data.qpos).all() or not np.isfinite(self.data.qvel).all())
+
+    def _observation(self) -> np.ndarray:
+        parts = [self.data.qpos[self._layout.qpos_idx], self.data.qvel[self._layout.qvel_idx]]
+        if self.task.command_features is not None:
+            parts.append(self.task.command_features(self._command))
+        obs = np.concatenate(parts)
+        return obs if self._mask_all else obs[self.obs_mask]
+
+    def get_sim_state(self) -> tuple[np.ndarray, np.ndarray]:
+        return self.data.qpos.copy(), self.data.qvel.copy()
+
+    def set_sim_state(self, qpos: np.ndarray, qvel: np.ndarray) -> np.ndarray:
+        """Put the simulator in a given state (e.g. to replay a dataset) and return its observation."""
+        self.data.qpos[:], self.data.qvel[:] = qpos, qvel
+        mujoco.mj_forward(self.model, self.data)
+        self._needs_reset = False
+        self._warnings0 = self._divergence_count()
+        self._last_obs = self._observation()
+        return self._last_obs.copy()
+
+    @property
+    def command(self) -> np.ndarray:
+        return self._command.copy()
+
+    def create_dataset(self, **kwargs: Any):
+        """The dataset of this env's Task-ID (see `loco_il.datasets.create_dataset`)."""
+        from loco_il.datasets import create_dataset
+        return create_dataset(self, **kwargs)
+
+    # ------------------------------------------------------------------ rendering
+    def render(self, record: bool = False) -> np.ndarray | None:
+        from loco_il.environments.rendering import render_frame
+        return render_frame(self)
+
+    def stop(self) -> None:
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+        if self._viewer is not None:
+            self._viewer.close()
+            self._viewer = None

@@ -1,0 +1,70 @@
+"""Rendering: RGB frames headless (MUJOCO_GL=egl or osmesa) and a passive viewer where a display exists."""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import TYPE_CHECKING, Callable
+
+import mujoco
+import numpy as np
+
+if TYPE_CHECKING:
+    from loco_il.environments.base import LocoEnv
+
+
+def _tracking_camera(env: "LocoEnv") -> mujoco.MjvCamera:
+    cam = mujoco.MjvCamera()
+    cam.type = mujoco.mjtCamera.mjCAMERA_TRACKING
+    cam.trackbodyid = env._root_body
+    cam.distance = 3.0 * max(float(env.model.stat.extent), 0.5) / 1.5
+    cam.elevation = -15.0
+    cam.azimuth = 90.0
+    return cam
+
+
+def render_frame(env: "LocoEnv") -> np.ndarray | None:
+    """One frame for `render_mode="rgb_array"`; opens/syncs a window for `"human"`."""
+    if env.render_mode == "human":
+        if env._viewer is None:
+            import mujoco.viewer
+            env._viewer = mujoco.viewer.launch_passive(env.model, env.data)
+        env._viewer.sync()
+        return None
+    if env._renderer is None:
+        height, width = env.render_size
+        env.model.vis.global_.offwidth = max(env.model.vis.global_.offwidth, width)
+        env.model.vis.global_.offheight = max(env.model.vis.global_.offheight, height)
+        env._renderer = mujoco.Renderer(env.model, height=height, width=width)
+        env._camera = _tracking_camera(env)
+    env._renderer.update_scene(env.data, camera=env._camera)
+    return env._renderer.render().copy()
+
+
+def record_episode(env: "LocoEnv", policy: Callable[[np.ndarray], np.ndarray] | None, path: str | os.PathLike,
+                   max_steps: int | None = None, fps: int | None = None) -> dict:
+    """Run one episode (random actions if `policy` is None), write an mp4, return {'return', 'steps', 'path'}."""
+    import imageio
+
+    previous = env.render_mode
+    env.render_mode = "rgb_array"
+    obs = env.reset()
+    frames, total, steps = [env.render()], 0.0, 0
+    limit = max_steps or env.info.horizon
+    rng = np.random.default_rng(0)
+    try:
+        for steps in range(1, limit + 1):
+            action = policy(obs) if policy is not None else rng.uniform(-1, 1, env.info.action_space.shape)
+            obs, reward, absorbing, _ = env.step(action)
+            total += reward
+            frames.append(env.render())
+            if absorbing:
+                break
+    finally:
+        env.render_mode = previous
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fps = fps or int(round(1.0 / env.dt))
+    tmp = path.with_name(f".{path.stem}.tmp{path.suffix}")
+    imageio.mimsave(tmp, frames, fps=fps, macro_block_size=1)
+    os.replace(tmp, path)
+    return {"return": total, "steps": steps, "path": str(path)}
