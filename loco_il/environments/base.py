@@ -11,6 +11,7 @@ Safe behaviour on bad input (documented in the README):
 """
 from __future__ import annotations
 
+import warnings
 from typing import Any, Callable, Sequence
 
 import mujoco
@@ -19,7 +20,7 @@ from mushroom_rl.core import Environment, MDPInfo
 from mushroom_rl.utils.spaces import Box
 
 from loco_il.environments.body import Body
-from loco_il.environments.observations import (ObservationSpec, joint_layout, observation_spec)
+from loco_il.environments.observations import ObservationSpec, joint_layout, observation_spec, root_xy_projection
 from loco_il.environments.tasks import RewardFn, StepContext, Task
 
 _DIVERGENCE_WARNINGS = (mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQPOS,
@@ -152,7 +153,9 @@ class LocoEnv(Environment):
 
     def _compile(self, spec: mujoco.MjSpec) -> None:
         """(Re)compile the model; everything derived from it (inertia, layout, ranges) follows."""
-        self.model = spec.compile()
+        with warnings.catch_warnings():  # Gymnasium's humanoid.xml uses the deprecated `settotalmass`
+            warnings.filterwarnings("ignore", message=".*settotalmass.*")
+            self.model = spec.compile()
         self.data = mujoco.MjData(self.model)
         self.n_substeps = max(1, int(round(self.body.control_dt / self.model.opt.timestep)))
         self.dt = self.n_substeps * self.model.opt.timestep
@@ -168,6 +171,7 @@ class LocoEnv(Environment):
                 adr = self.model.jnt_qposadr[j]
                 self._init_qpos[adr:adr + self._init_pose[name].size] = self._init_pose[name]
         self._root_body = int(self.model.jnt_bodyid[0]) if self.model.njnt else 1
+        self._root_xy_idx, self._root_xy_proj = root_xy_projection(self.model)
         self._point_body = (mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, self.task.velocity_point)
                             if self.task.velocity_point not in ("root", "com") else self._root_body)
         if getattr(self, "_renderer", None) is not None:   # the renderer is bound to the old model
@@ -257,8 +261,12 @@ class LocoEnv(Environment):
 
     # ------------------------------------------------------------------ helpers
     def _velocity_point(self) -> np.ndarray:
-        if self.task.velocity_point == "com":
+        """Horizontal position whose finite difference over a step is the task's velocity."""
+        point = self.task.velocity_point
+        if point == "com":
             return (self.model.body_mass @ self.data.xipos)[:2] / self.model.body_mass.sum()
+        if point == "root" and self._root_xy_idx.size:
+            return self._root_xy_proj @ self.data.qpos[self._root_xy_idx]
         return self.data.xpos[self._point_body, :2].copy()
 
     def _divergence_count(self) -> int:

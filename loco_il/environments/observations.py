@@ -85,6 +85,27 @@ def horizontal_root_qpos(model: mujoco.MjModel) -> set[int]:
     return excluded
 
 
+def root_xy_projection(model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray]:
+    """(qpos indices, 2xk matrix) such that `P @ qpos[idx]` is the root's horizontal world position.
+
+    Gymnasium measures Hopper/Walker/HalfCheetah progress on the root slide joint (qpos[0]) and
+    LocoMuJoCo on pelvis_tx; a free joint's x, y are the root body's position. Empty if the root
+    has no horizontal degrees of freedom (the env then falls back to the root body's position).
+    """
+    idx, cols = [], []
+    for j in range(model.njnt):
+        if model.body_parentid[model.jnt_bodyid[j]] != 0:
+            continue
+        adr = model.jnt_qposadr[j]
+        if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE:
+            idx += [adr, adr + 1]
+            cols += [(1.0, 0.0), (0.0, 1.0)]
+        elif model.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE and abs(model.jnt_axis[j][2]) < 1e-6:
+            idx.append(adr)
+            cols.append(tuple(model.jnt_axis[j][:2]))
+    return np.array(idx, dtype=np.intp), np.array(cols, dtype=np.float64).reshape(-1, 2).T
+
+
 def joint_layout(model: mujoco.MjModel, exclude_root_xy: bool = True) -> JointLayout:
     excluded = horizontal_root_qpos(model) if exclude_root_xy else set()
     qpos_idx, qvel_idx, pos_names, vel_names = [], [], [], []

@@ -16,9 +16,11 @@ def _tracking_camera(env: "LocoEnv") -> mujoco.MjvCamera:
     cam = mujoco.MjvCamera()
     cam.type = mujoco.mjtCamera.mjCAMERA_TRACKING
     cam.trackbodyid = env._root_body
-    cam.distance = 3.0 * max(float(env.model.stat.extent), 0.5) / 1.5
+    # scale with the robot's size (its root height), not the scene extent, which the floor dominates
+    height = float(np.clip(env.data.xpos[env._root_body, 2], 0.3, 1.5))
+    cam.distance = 3.0 * height
     cam.elevation = -15.0
-    cam.azimuth = 90.0
+    cam.azimuth = 90.0  # side view of motion along +x
     return cam
 
 
@@ -26,8 +28,8 @@ def render_frame(env: "LocoEnv") -> np.ndarray | None:
     """One frame for `render_mode="rgb_array"`; opens/syncs a window for `"human"`."""
     if env.render_mode == "human":
         if env._viewer is None:
-            import mujoco.viewer
-            env._viewer = mujoco.viewer.launch_passive(env.model, env.data)
+            from mujoco import viewer
+            env._viewer = viewer.launch_passive(env.model, env.data)
         env._viewer.sync()
         return None
     if env._renderer is None:

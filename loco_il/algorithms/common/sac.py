@@ -1,0 +1,251 @@
+"""Soft Actor-Critic core shared by the off-policy imitation learners (IQ-Learn, LS-IQ, SQIL).
+
+SAC as in Haarnoja et al. 2018 ("Soft Actor-Critic Algorithms and Applications", arXiv:1812.05905):
+  * twin critic Q1, Q2 and a Polyak-averaged target copy                     (Sec. 5, Eq. 5-6)
+  * actor loss  J_pi = E_s[ alpha log pi(a~|s) - min_i Q_i(s, a~) ],  a~ reparameterized (Eq. 7, 11)
+  * temperature J(alpha) = E_a~pi[ -alpha (log pi(a|s) + target_entropy) ], target = -|A|   (Eq. 18)
+The IL methods differ only in the critic objective, so `OffPolicyILAgent` asks its subclass for
+`critic_loss(expert_batch, policy_batch)` and does everything else (replay, actor, temperature,
+target network) itself.
+"""
+from __future__ import annotations
+
+import copy
+import math
+from typing import Sequence
+
+import numpy as np
+import torch
+from torch import nn
+
+from .agent_base import ILAgent
+from .networks import GaussianPolicy, TwinQ
+from .replay import TransitionBuffer
+
+
+# ---------------------------------------------------------------------- the three SAC formulas
+def actor_loss(alpha: torch.Tensor, log_prob: torch.Tensor, q_min: torch.Tensor) -> torch.Tensor:
+    """SAC policy loss (Haarnoja et al. 2018b, Eq. 7): E[alpha log pi(a|s) - min_i Q_i(s, a)]."""
+    return (alpha * log_prob - q_min).mean()
+
+
+def temperature_loss(log_alpha: torch.Tensor, log_prob: torch.Tensor, target_entropy: float) -> torch.Tensor:
+    """SAC temperature loss (Eq. 18): E[-alpha (log pi + target_entropy)], alpha = exp(log_alpha).
+
+    Its gradient raises alpha when the policy's entropy -log pi is below the target and lowers it above.
+    """
+    return -(log_alpha.exp() * (log_prob.detach() + target_entropy)).mean()
+
+
+@torch.no_grad()
+def polyak_update(target: nn.Module, source: nn.Module, tau: float) -> None:
+    """target <- (1 - tau) target + tau source, for all parameters at once."""
+    t_params, s_params = list(target.parameters()), list(source.parameters())
+    torch._foreach_lerp_(t_params, s_params, tau)
+
+
+class SACCore:
+    """Actor, twin critic, target critic, temperature and their optimizers."""
+
+    def __init__(self, policy: GaussianPolicy, obs_dim: int, act_dim: int,
+                 critic_hidden: Sequence[int] = (256, 256), gamma: float = 0.99, tau: float = 0.005,
+                 actor_lr: float = 3e-4, critic_lr: float = 3e-4, alpha_lr: float = 3e-4,
+                 init_alpha: float = 1.0, learn_alpha: bool = True, target_entropy: float | None = None,
+                 critic_grad_clip: float | None = None, device: str | torch.device = "cpu"):
+        if not getattr(policy, "squash", False):
+            raise ValueError("SAC needs a tanh-squashed GaussianPolicy (squash=True)")
+        self.device = torch.device(device)
+        self.policy = policy
+        self.gamma, self.tau = float(gamma), float(tau)
+        self.critic = TwinQ(obs_dim, act_dim, critic_hidden).to(self.device)
+        self.critic_target = copy.deepcopy(self.critic).requires_grad_(False)
+        self.log_alpha = torch.tensor(math.log(init_alpha), device=self.device, requires_grad=True)
+        self.learn_alpha = learn_alpha
+        self.target_entropy = float(-act_dim if target_entropy is None else target_entropy)
+        self.critic_grad_clip = critic_grad_clip
+        self._critic_params = list(self.critic.parameters())
+        self._target_params = list(self.critic_target.parameters())
+        # foreach=True: one fused kernel per optimizer step instead of one per tensor (also on the CPU)
+        self.actor_opt = torch.optim.Adam(policy.parameters(), lr=actor_lr, foreach=True)
+        self.critic_opt = torch.optim.Adam(self._critic_params, lr=critic_lr, foreach=True)
+        self.alpha_opt = torch.optim.Adam([self.log_alpha], lr=alpha_lr, foreach=True)
+
+    @property
+    def alpha(self) -> torch.Tensor:
+        return self.log_alpha.detach().exp()
+
+    @torch.no_grad()
+    def target_soft_value(self, next_obs: torch.Tensor) -> torch.Tensor:
+        """V_target(s') = min_i Q_target_i(s', a') - alpha log pi(a'|s'), a' ~ pi(.|s')."""
+        a, logp = self.policy.sample(next_obs)
+        q1, q2 = self.critic_target(next_obs, a)
+        return torch.minimum(q1, q2) - self.alpha * logp
+
+    def critic_step(self, loss: torch.Tensor) -> None:
+        self.critic_opt.zero_grad(set_to_none=True)
+        loss.backward()
+        if self.critic_grad_clip is not None:
+            nn.utils.clip_grad_norm_(self._critic_params, self.critic_grad_clip)
+        self.critic_opt.step()
+
+    def actor_step(self, obs: torch.Tensor) -> dict[str, torch.Tensor]:
+        """One actor step on the states `obs`, then (if learned) one temperature step."""
+        for p in self._critic_params:  # gradients only into the policy
+            p.requires_grad_(False)
+        try:
+            a, logp = self.policy.sample(obs)
+            q1, q2 = self.critic(obs, a)
+            loss = actor_loss(self.alpha, logp, torch.minimum(q1, q2))
+            self.actor_opt.zero_grad(set_to_none=True)
+            loss.backward()
+            self.actor_opt.step()
+        finally:
+            for p in self._critic_params:
+                p.requires_grad_(True)
+        info = {"actor_loss": loss.detach(), "entropy": -logp.detach().mean()}
+        if self.learn_alpha:
+            a_loss = temperature_loss(self.log_alpha, logp, self.target_entropy)
+            self.alpha_opt.zero_grad(set_to_none=True)
+            a_loss.backward()
+            self.alpha_opt.step()
+        info["alpha"] = self.alpha
+        return info
+
+    def update_target(self) -> None:
+        with torch.no_grad():
+            torch._foreach_lerp_(self._target_params, self._critic_params, self.tau)
+
+    def state_dict(self) -> dict:
+        return {"critic": self.critic.state_dict(), "critic_target": self.critic_target.state_dict(),
+                "log_alpha": self.log_alpha.detach().clone(), "actor_opt": self.actor_opt.state_dict(),
+                "critic_opt": self.critic_opt.state_dict(), "alpha_opt": self.alpha_opt.state_dict()}
+
+    def load_state_dict(self, state: dict) -> None:
+        self.critic.load_state_dict(state["critic"])
+        self.critic_target.load_state_dict(state["critic_target"])
+        with torch.no_grad():
+            self.log_alpha.copy_(state["log_alpha"])
+        self.actor_opt.load_state_dict(state["actor_opt"])
+        self.critic_opt.load_state_dict(state["critic_opt"])
+        self.alpha_opt.load_state_dict(state["alpha_opt"])
+
+
+class OffPolicyILAgent(ILAgent):
+    """Replay + expert buffer + SAC; subclasses implement `critic_loss(expert, policy)`.
+
+    Each `fit` adds the new transitions to the replay memory and, once it holds
+    `initial_replay_size` transitions, does `updates_per_step` updates per new transition.
+    An update samples `batch_size` agent and `expert_batch_size` expert transitions, takes one
+    critic step on the subclass's loss, one actor (+ temperature) step every `actor_delay`
+    updates on the states of both batches, and one Polyak step of the target critic.
+    """
+
+    needs_expert_actions = True
+
+    def __init__(self, mdp_info, policy_module: GaussianPolicy, *, critic_hidden: Sequence[int] = (256, 256),
+                 actor_lr: float = 3e-4, critic_lr: float = 3e-4, alpha_lr: float = 3e-4,
+                 init_alpha: float = 1.0, learn_alpha: bool = True, target_entropy: float | None = None,
+                 tau: float = 0.005, batch_size: int = 256, expert_batch_size: int = 256,
+                 replay_capacity: int = 1_000_000, initial_replay_size: int = 1000,
+                 random_initial_steps: int = 0, updates_per_step: int = 1, actor_delay: int = 1,
+                 critic_grad_clip: float | None = None, actor_on_expert_states: bool = True,
+                 device: str = "cpu", seed: int | None = None):
+        super().__init__(mdp_info, policy_module, device=device, seed=seed)
+        self.obs_dim = int(np.prod(mdp_info.observation_space.shape))
+        self.act_dim = int(np.prod(mdp_info.action_space.shape))
+        self.gamma = float(mdp_info.gamma)
+        self.sac = SACCore(self.policy_module, self.obs_dim, self.act_dim, critic_hidden, self.gamma, tau,
+                           actor_lr, critic_lr, alpha_lr, init_alpha, learn_alpha, target_entropy,
+                           critic_grad_clip, self.device)
+        self.batch_size, self.expert_batch_size = int(batch_size), int(expert_batch_size)
+        self.initial_replay_size = int(initial_replay_size)
+        self.random_initial_steps = int(random_initial_steps)
+        self.updates_per_step, self.actor_delay = int(updates_per_step), int(actor_delay)
+        self.actor_on_expert_states = actor_on_expert_states
+        self.replay = TransitionBuffer(replay_capacity, self.obs_dim, self.act_dim, self.device)
+        self.expert_buffer: TransitionBuffer | None = None
+        self.n_transitions = 0
+        self.n_updates = 0
+        self.last_info: dict[str, torch.Tensor] = {}
+        self._register_checkpoint("sac", self.sac)
+        self._register_checkpoint_attr("n_transitions", "n_updates")
+
+    # ------------------------------------------------------------------ data
+    def set_expert(self, expert) -> None:
+        super().set_expert(expert)
+        actions = expert.actions if self.needs_expert_actions else None
+        self.expert_buffer = TransitionBuffer.from_arrays(
+            np.asarray(expert.obs), np.asarray(expert.next_obs), np.asarray(expert.absorbing, dtype=np.float32),
+            actions, device=self.device)
+
+    def fit(self, dataset, **info) -> None:
+        if self.expert_buffer is None:
+            raise RuntimeError("call set_expert(...) before fit")
+        d = self.parse_dataset(dataset)
+        self.replay.add(d["obs"], d["next_obs"], d["absorbing"].astype(np.float32), d["actions"])
+        self.n_transitions += len(d["obs"])
+        if len(self.replay) >= self.initial_replay_size:
+            for _ in range(len(d["obs"]) * self.updates_per_step):
+                self.update()
+
+    def _act(self, state) -> np.ndarray:
+        if not self.deterministic and self.n_transitions < self.random_initial_steps:
+            return self.rng.uniform(-1.0, 1.0, size=self.act_dim)
+        return super()._act(state)
+
+    # ------------------------------------------------------------------ learning
+    def update(self) -> dict[str, torch.Tensor]:
+        expert = self.expert_buffer.sample(self.expert_batch_size, self.rng)
+        policy = self.replay.sample(self.batch_size, self.rng)
+        loss, info = self.critic_loss(expert, policy)
+        self.sac.critic_step(loss)
+        info["critic_loss"] = loss.detach()
+        if self.n_updates % self.actor_delay == 0:
+            states = torch.cat([expert["obs"], policy["obs"]]) if self.actor_on_expert_states else policy["obs"]
+            info.update(self.sac.actor_step(states))
+        self.sac.update_target()
+        self.n_updates += 1
+        self.last_info = info
+        return info
+
+    def critic_loss(self, expert: dict, policy: dict) -> tuple[torch.Tensor, dict]:
+        """The method-specific critic objective on one expert and one agent batch."""
+        raise NotImplementedError
+
+    def critic_values(self, expert: dict, policy: dict, need_v: bool = True,
+                      online_next: bool = False) -> dict[str, torch.Tensor]:
+        """Everything the implicit-reward losses need, with one policy and one critic forward.
+
+        Returns, for the concatenation [expert; policy] of length N (first `n_expert` are expert):
+          q      (2, N)  Q_i(s, a) of both heads (with grad)
+          v      (2, N)  V_i(s) = Q_i(s, a~) - alpha log pi(a~|s), a~ ~ pi(.|s)  (grad into Q only); if need_v
+          v_next (2, N)  V(s'): from the online heads (with grad) if online_next, else
+                         min_i Q_target_i(s', a') - alpha log pi(a'|s') (no grad), repeated for both heads
+          absorbing (N,)
+        """
+        n_e = len(expert["obs"])
+        obs = torch.cat([expert["obs"], policy["obs"]])
+        act = torch.cat([expert["actions"], policy["actions"]])
+        next_obs = torch.cat([expert["next_obs"], policy["next_obs"]])
+        n = len(obs)
+        alpha = self.sac.alpha
+        with torch.no_grad():  # sampled actions are constants for the critic loss
+            pol_obs = torch.cat([obs, next_obs]) if (need_v or online_next) else next_obs
+            a_pi, logp = self.policy_module.sample(pol_obs)
+        crit_obs, crit_act = [obs], [act]
+        if need_v:
+            crit_obs.append(obs); crit_act.append(a_pi[:n])
+        if online_next:
+            crit_obs.append(next_obs); crit_act.append(a_pi[-n:])
+        q1, q2 = self.sac.critic(torch.cat(crit_obs), torch.cat(crit_act))
+        qs = torch.stack([q1, q2])  # (2, k * N)
+        out = {"q": qs[:, :n], "absorbing": torch.cat([expert["absorbing"], policy["absorbing"]]), "n_expert": n_e}
+        if need_v:
+            out["v"] = qs[:, n:2 * n] - alpha * logp[:n]
+        if online_next:
+            out["v_next"] = qs[:, -n:] - alpha * logp[-n:]
+        else:
+            with torch.no_grad():
+                t1, t2 = self.sac.critic_target(next_obs, a_pi[-n:])
+                out["v_next"] = (torch.minimum(t1, t2) - alpha * logp[-n:]).expand(2, n)
+        return out

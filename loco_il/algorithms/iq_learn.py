@@ -1,0 +1,66 @@
+"""IQ-Learn: Inverse soft-Q Learning (Garg et al., NeurIPS 2021, arXiv:2106.12142), online, chi^2.
+
+IQ-Learn learns a single soft Q-function whose *implicit reward* is given by the inverse soft
+Bellman operator (paper Sec. 4, Eq. 9):
+
+    r_Q(s, a) = Q(s, a) - gamma * (1 - absorbing) * V^pi(s'),   V^pi(s) = E_{a~pi}[Q(s, a) - alpha log pi(a|s)].
+
+The critic maximizes (paper Eq. 10 with the telescoping trick of Sec. 5.1 / Eq. 13 that replaces
+(1-gamma) E_rho0[V(s0)] by E_rho[V(s) - gamma V(s')] for any state distribution rho):
+
+    J(Q) = E_expert[ phi(r_Q(s, a)) ] - E_mix[ V(s) - gamma (1 - absorbing) V(s') ]
+
+with the chi^2 divergence, phi(x) = x - x^2 / (4 a_chi2) (paper Table 4 / Appendix; a_chi2 = 0.5).
+Variant implemented here (the paper's online variant, Sec. 5.1 "Online"):
+  * the value term uses the mixture of expert and agent samples ("value" loss, rho = mixture),
+  * the chi^2 penalty 1/(4 a_chi2) E[r_Q^2] is applied to expert AND agent samples (IQ-Learn's
+    online practice of regularizing on both; LS-IQ Sec. 3 analyses exactly this mixture regularizer),
+  * absorbing states have V(s_A) = 0 (the (1 - absorbing) mask), as in the original method.
+  * V(s') is taken from the online critic by default (`use_target=False`, the paper's objective is
+    a function of one Q); `use_target=True` bootstraps from the Polyak target critic instead.
+The twin critic trains each head on this objective separately (losses summed); the actor is SAC's.
+"""
+from __future__ import annotations
+
+import torch
+
+from .common.sac import OffPolicyILAgent
+
+
+def iq_critic_loss(q: torch.Tensor, v: torch.Tensor, v_next: torch.Tensor, absorbing: torch.Tensor,
+                   n_expert: int, gamma: float, chi2_coef: float = 0.5,
+                   regularize_policy: bool = True) -> tuple[torch.Tensor, dict]:
+    """IQ-Learn critic loss -J(Q) (module docstring), summed over any leading (head) dimensions.
+
+    q, v, v_next: (..., N) with the first `n_expert` entries expert samples, the rest agent samples;
+    q = Q(s, a), v = V(s), v_next = V(s'); absorbing: (N,) 1 where s' is absorbing.
+    chi2_coef = 1 / (4 a_chi2).
+    """
+    y_next = gamma * (1.0 - absorbing) * v_next
+    r = q - y_next                                       # implicit reward, Eq. 9
+    expert_term = -r[..., :n_expert].mean(-1)            # -E_expert[r_Q]
+    value_term = (v - y_next).mean(-1)                   # E_mix[V(s) - gamma V(s')]
+    r_reg = r if regularize_policy else r[..., :n_expert]
+    chi2_term = chi2_coef * r_reg.pow(2).mean(-1)        # 1/(4a) E[r_Q^2]
+    loss = (expert_term + value_term + chi2_term).sum()
+    info = {"reward_expert": r[..., :n_expert].mean().detach(),
+            "reward_policy": r[..., n_expert:].mean().detach()}
+    return loss, info
+
+
+class IQLearn(OffPolicyILAgent):
+    name = "iqlearn"
+    display_name = "IQ-Learn"
+    supported_datasets = frozenset({"perfect", "preference"})
+
+    def __init__(self, mdp_info, policy_module, *, chi2_alpha: float = 0.5, use_target: bool = False,
+                 regularize_policy: bool = True, **kwargs):
+        super().__init__(mdp_info, policy_module, **kwargs)
+        self.chi2_coef = 1.0 / (4.0 * chi2_alpha)
+        self.use_target = use_target
+        self.regularize_policy = regularize_policy
+
+    def critic_loss(self, expert, policy):
+        c = self.critic_values(expert, policy, need_v=True, online_next=not self.use_target)
+        return iq_critic_loss(c["q"], c["v"], c["v_next"], c["absorbing"], c["n_expert"], self.gamma,
+                              self.chi2_coef, self.regularize_policy)

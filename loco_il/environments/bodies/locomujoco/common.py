@@ -1,0 +1,117 @@
+"""Shared parts of LocoMuJoCo 0.4.1's own robots (Atlas, Talos, Unitree H1/G1/A1, torque/muscle humanoid).
+
+Facts (LocoMuJoCo 0.4.1, `loco_mujoco/environments/base.py`, `LocoEnv.__init__` defaults): physics
+timestep 0.001 s, 10 substeps per action (100 Hz control), horizon 1000, gamma 0.99. The models have
+no free joint: the root is six joints on the root body (three slides, then three hinges).
+
+Termination. LocoMuJoCo's `_has_fallen` bounds the vertical root slide joint (pelvis_ty / trunk_tz, a
+displacement from the root body's model position) and the root hinge angles (tilt/list/rotation), plus
+back/lumbar joints where present. Our robots keep exactly these root joints, so `RootJointFall` bounds
+the same hinge angles by joint name (asymmetric bounds, and the yaw bound LocoMuJoCo uses, cannot be
+expressed as a symmetric roll/pitch limit); the slide bound is translated to the root body's world
+height: z_world = z_model + q_slide (the slides act before the hinges, along world axes), i.e.
+(lo, hi) on q_slide becomes (z_model + lo, z_model + hi) on z. A state is healthy when every value lies
+in its closed interval (LocoMuJoCo: fallen if q < lo or q > hi).
+
+Start state. LocoMuJoCo starts from dataset states; the models have no keyframe. Each body adds a
+"stand" keyframe (feet on the floor, measured with `mujoco.mj_geomDistance`), see `add_keyframe`.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable, Mapping, Sequence
+
+import mujoco
+import numpy as np
+
+from loco_il.environments.assets import locomujoco_asset
+from loco_il.environments.tasks import StepContext, Task, TargetVelocityReward
+
+TIMESTEP = 0.001        # LocoMuJoCo LocoEnv(timestep=0.001)
+CONTROL_DT = 0.01       # LocoMuJoCo LocoEnv(n_substeps=10) -> 100 Hz
+HORIZON = 1000          # LocoMuJoCo LocoEnv(horizon=1000)
+WALK_SPEED = 1.25       # m/s, LocoMuJoCo reward_params target_velocity for walk (and carry)
+RUN_SPEED = 2.5         # m/s, LocoMuJoCo reward_params target_velocity for run
+DATASETS = ("real", "perfect", "preference")
+STAND_KEY = "stand"
+
+
+def loader(relative: str) -> Callable[[], mujoco.MjSpec]:
+    """A `load_spec` for one LocoMuJoCo model file (fetched into the asset cache on first use)."""
+    def load() -> mujoco.MjSpec:
+        return mujoco.MjSpec.from_file(str(locomujoco_asset(relative)))
+    load.__qualname__ = f"load_locomujoco[{relative}]"
+    return load
+
+
+@dataclass(frozen=True)
+class RootJointFall:
+    """LocoMuJoCo's `_has_fallen`: root-body height band plus closed bounds on named joint angles.
+
+    height_range: (lo, hi) on the world z of the root body (the body of the model's first joint), metres.
+    joint_bounds: ((joint_name, lo, hi), ...) on joint positions (radians), e.g. pelvis tilt/list/rotation.
+    """
+
+    height_range: tuple[float, float]
+    joint_bounds: tuple[tuple[str, float, float], ...] = ()
+
+    def __call__(self, ctx: StepContext) -> bool:
+        model, data = ctx.model, ctx.data
+        z = data.xpos[model.jnt_bodyid[0], 2]
+        if not self.height_range[0] <= z <= self.height_range[1]:
+            return True
+        for name, lo, hi in self.joint_bounds:
+            jid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
+            if jid < 0:
+                raise KeyError(f"termination bounds joint {name!r}, which this model does not have")
+            q = data.qpos[model.jnt_qposadr[jid]]
+            if not lo <= q <= hi:
+                return True
+        return False
+
+
+def slide_to_height(z_model: float, slide_range: tuple[float, float]) -> tuple[float, float]:
+    """Translate LocoMuJoCo's bound on the vertical root slide into a world-height band of the root body."""
+    return (z_model + slide_range[0], z_model + slide_range[1])
+
+
+def add_keyframe(spec: mujoco.MjSpec, pose: Mapping[str, float], name: str = STAND_KEY) -> None:
+    """Add a keyframe whose qpos is each joint's `ref` (its qpos0) except the joints named in `pose`."""
+    known = {j.name for j in spec.joints}
+    unknown = set(pose) - known
+    if unknown:
+        raise KeyError(f"start pose names joints the model lacks: {sorted(unknown)}")
+    qpos = []
+    for joint in spec.joints:
+        if joint.type not in (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE):
+            raise TypeError(f"add_keyframe handles hinge/slide joints only; {joint.name!r} is {joint.type}")
+        qpos.append(float(pose.get(joint.name, joint.ref)))
+    spec.add_key(name=name, qpos=qpos)
+
+
+def set_body_quats(spec: mujoco.MjSpec, quats: Mapping[str, Sequence[float]]) -> None:
+    """Set body orientations (MuJoCo normalizes the quaternions when compiling)."""
+    for body_name, quat in quats.items():
+        body = spec.body(body_name)
+        if body is None:
+            raise KeyError(f"the model has no body {body_name!r}")
+        body.quat = np.asarray(quat, dtype=float)
+
+
+def chain(*edits: Callable[[mujoco.MjSpec], None]) -> Callable[[mujoco.MjSpec], None]:
+    def edit(spec: mujoco.MjSpec) -> None:
+        for fn in edits:
+            fn(spec)
+    return edit
+
+
+def humanoid_tasks(termination: RootJointFall, run: bool, robot: str) -> dict[str, Task]:
+    """walk (1.25 m/s), optionally run (2.5 m/s), and stand (0 m/s), all with the same fall termination."""
+    tasks = {"walk": Task(TargetVelocityReward(WALK_SPEED), termination, horizon=HORIZON,
+                          description=f"{robot}: walk forward at {WALK_SPEED} m/s (LocoMuJoCo walk)")}
+    if run:
+        tasks["run"] = Task(TargetVelocityReward(RUN_SPEED), termination, horizon=HORIZON,
+                            description=f"{robot}: run forward at {RUN_SPEED} m/s (LocoMuJoCo run)")
+    tasks["stand"] = Task(TargetVelocityReward(0.0), termination, horizon=HORIZON,
+                          description=f"{robot}: stand still (target velocity 0; not in LocoMuJoCo)")
+    return tasks

@@ -1,0 +1,92 @@
+"""Command line: train and evaluate PPO experts.
+
+    python -m loco_il.experts train task=Hopper.run total_steps=2000000 num_envs=16 seed=0 out_dir=runs/hopper
+    python -m loco_il.experts eval path=runs/hopper/best.pt episodes=10
+
+`train` is a Hydra app (configs/train.yaml, plus configs/body/<Body>.yaml when it exists); re-running the
+same command with the same out_dir resumes from out_dir/checkpoint.pt. Its last output line is a JSON
+summary (final evaluation return mean and std, env steps, wall time). `eval` prints one JSON line.
+"""
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+import hydra
+from omegaconf import DictConfig, OmegaConf
+
+CONFIG_DIR = str(Path(__file__).resolve().parent / "configs")
+USAGE = __doc__
+
+
+def body_config_path(task: str) -> Path:
+    body = str(task).split(".")[0].split("-")[0]
+    return Path(CONFIG_DIR) / "body" / f"{body}.yaml"
+
+
+def _cli_overrides() -> list[str]:
+    """The plain key=value overrides of this Hydra run (to re-apply above the per-body file)."""
+    from hydra.core.hydra_config import HydraConfig
+    out = []
+    for item in HydraConfig.get().overrides.task:
+        if item.startswith("~"):
+            continue
+        out.append(item.lstrip("+"))
+    return out
+
+
+def compose_train_config(cfg: DictConfig, cli_overrides: list[str]) -> dict[str, Any]:
+    """train.yaml <- configs/body/<Body>.yaml <- command line, resolved to a plain dict."""
+    cfg = OmegaConf.create(OmegaConf.to_container(cfg, resolve=False))
+    body_file = body_config_path(cfg.task)
+    if body_file.exists():
+        cfg = OmegaConf.merge(cfg, OmegaConf.load(body_file), OmegaConf.from_dotlist(cli_overrides))
+    return OmegaConf.to_container(cfg, resolve=True)
+
+
+@hydra.main(config_path=CONFIG_DIR, config_name="train", version_base=None)
+def train_main(cfg: DictConfig) -> None:
+    from loco_il.experts.ppo import PPOTrainer
+    plain = compose_train_config(cfg, _cli_overrides())
+    PPOTrainer(plain).train()
+
+
+@hydra.main(config_path=CONFIG_DIR, config_name="eval", version_base=None)
+def eval_main(cfg: DictConfig) -> None:
+    import numpy as np
+
+    from loco_il.experts.policy import load_expert
+    from loco_il.experts.vec import evaluate, make_vec_env
+    expert = load_expert(cfg.path)
+    task = cfg.task or expert.metadata.get("task_id")
+    if not task:
+        raise SystemExit("the expert file names no task_id; pass task=<Task-ID>")
+    envs = make_vec_env(task, max(1, int(cfg.num_envs)), cfg["async"])
+    rng = np.random.default_rng(cfg.seed)
+    act = (lambda o: expert.act(o, deterministic=False, rng=rng)) if cfg.stochastic else expert
+    try:
+        returns, lengths = evaluate(act, envs, int(cfg.episodes), seed=int(cfg.seed))
+    finally:
+        envs.close()
+    print(json.dumps({"path": str(cfg.path), "task_id": task, "episodes": int(len(returns)),
+                      "return_mean": round(float(returns.mean()), 2), "return_std": round(float(returns.std()), 2),
+                      "length_mean": round(float(lengths.mean()), 1), "returns": [round(float(r), 2) for r in returns],
+                      "training_steps": expert.metadata.get("training_steps"),
+                      "stored_eval_return": expert.metadata.get("eval_return"),
+                      "checksum": expert.checksum()}), flush=True)
+
+
+def main(argv: list[str] | None = None) -> None:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if not argv or argv[0] not in ("train", "eval"):
+        print(USAGE, file=sys.stderr)
+        raise SystemExit(0 if argv and argv[0] in ("-h", "--help") else 2)
+    command = argv.pop(0)
+    sys.argv = [sys.argv[0]] + argv
+    (train_main if command == "train" else eval_main)()
+
+
+if __name__ == "__main__":
+    main()

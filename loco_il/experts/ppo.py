@@ -1,0 +1,607 @@
+"""PPO for training the experts that generate the `perfect` and `preference` datasets.
+
+The algorithm follows Schulman et al. 2017, "Proximal Policy Optimization Algorithms" (clipped surrogate,
+eq. 7; generalized advantage estimation, eq. 11-12, from Schulman et al. 2016; epochs of minibatch Adam
+updates on a batch of on-policy data), with the implementation choices that Andrychowicz et al. 2021,
+"What Matters in On-Policy Reinforcement Learning? A Large-Scale Empirical Study", recommend for MuJoCo:
+separate policy and value networks, tanh activations, orthogonal initialization with the policy's last
+layer scaled by 0.01, observation normalization, no value-loss clipping, Adam with learning rate 3e-4.
+
+Pieces:
+* `RunningMeanStd`  running mean/variance of a stream of batches (parallel variance formula of
+                    Chan, Golub & LeVeque 1979). Updated only while collecting training rollouts; frozen
+                    (read, never updated) in evaluation and in the shipped expert (`policy.ExpertPolicy`).
+* `compute_gae`     GAE(lambda) with separate termination and episode-end flags:
+                      delta_t = r_t + gamma * (1 - terminated_t) * V(s'_t) - V(s_t)
+                      A_t     = delta_t + gamma * lambda * (1 - ended_t) * A_{t+1}
+                    On truncation (time limit) s'_t is the episode's real last observation and V(s'_t) is
+                    bootstrapped; on termination it is not. ended_t = terminated_t or truncated_t.
+* `PPO`             the learner: networks, Adam optimizers (linearly decayed learning rate), acting, update.
+* `PPOTrainer`      the loop: vectorized rollouts, optional reward scaling (divide rewards by the running
+                    std of the discounted return, "reward scaling" in Engstrom et al. 2020, "Implementation
+                    Matters in Deep Policy Gradients"), checkpoint/resume, periodic deterministic evaluation,
+                    `best.pt` and snapshot experts, progress lines and a final JSON summary.
+
+Defaults (`TrainConfig`; `configs/train.yaml` mirrors them): gamma 0.99, lambda 0.95, clip 0.2, 10 epochs,
+Adam 3e-4 (Schulman et al. 2017, Table 3, MuJoCo); 2048-step batches as in that table, collected by
+16 envs x 128 steps; larger minibatches (512) than the paper's 64 so that an epoch is 4 Adam steps and the
+update keeps up with 16 env processes; tanh [64, 64] networks (Schulman et al. 2017, sec. 6.1);
+gradient-norm clipping 0.5 and observation clipping to +-10 (OpenAI Baselines' ppo2 / VecNormalize
+defaults).
+"""
+from __future__ import annotations
+
+import collections
+import copy
+import dataclasses
+import json
+import math
+import os
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Mapping, Sequence
+
+import numpy as np
+import torch
+from torch import nn
+
+from loco_il.algorithms.common.networks import GaussianPolicy, mlp
+from loco_il.experts.policy import ACTIVATIONS, ExpertPolicy, normalize_obs
+from loco_il.utils.atomic import atomic_torch_save
+
+CHECKPOINT_FORMAT = "loco_il.experts.checkpoint/v1"
+
+
+# ---------------------------------------------------------------------------- configuration
+@dataclass
+class TrainConfig:
+    """Everything `python -m loco_il.experts train` accepts (flat; see configs/train.yaml)."""
+
+    task: str = "Hopper.run"
+    seed: int = 0
+    out_dir: str = "runs/experts/Hopper.run/seed0"
+    total_steps: int = 2_000_000
+    num_envs: int = 16
+    async_envs: Any = "auto"          # "auto" | True | False (yaml key: `async`)
+    device: str = "auto"              # "auto" | "cpu" | "cuda": where the PPO update runs; envs and acting on CPU
+    torch_threads: int = 1
+    # PPO
+    num_steps: int = 128              # per env per rollout: batch = num_envs * num_steps
+    epochs: int = 10
+    minibatch_size: int = 512
+    lr: float = 3e-4
+    lr_decay: bool = True             # linear decay to 0 over total_steps
+    gamma: float = 0.99
+    gae_lambda: float = 0.95
+    clip: float = 0.2
+    vf_coef: float = 0.5
+    ent_coef: float = 0.0
+    max_grad_norm: float = 0.5
+    target_kl: float | None = None    # stop an update's epochs early when the approximate KL exceeds this
+    norm_adv: bool = True
+    norm_obs: bool = True
+    obs_clip: float = 10.0
+    norm_reward: bool = True
+    reward_clip: float = 10.0
+    hidden: Sequence[int] = (64, 64)
+    activation: str = "tanh"
+    init_log_std: float = 0.0
+    # bookkeeping
+    checkpoint_minutes: float = 5.0
+    eval_interval: int = 100_000      # env steps between evaluations (0: only at snapshots and the end)
+    eval_episodes: int = 10
+    eval_envs: int = 0                # 0: min(eval_episodes, num_envs)
+    snapshot_every: float = 0.1       # fraction of total_steps between snapshots (0: none)
+    snapshot_initial: bool = True     # also save the untrained policy as snapshots/step_000000000.pt
+    log_interval_s: float = 10.0
+    env_kwargs: Mapping[str, Any] = field(default_factory=dict)
+
+    @classmethod
+    def from_mapping(cls, cfg: Mapping[str, Any]) -> "TrainConfig":
+        data = dict(cfg)
+        if "async" in data:
+            data["async_envs"] = data.pop("async")
+        data.pop("body", None)
+        names = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(data) - names)
+        if unknown:
+            raise ValueError(f"unknown training option(s) {unknown}; known: {sorted(names)}")
+        out = cls(**data)
+        out.hidden = tuple(int(h) for h in out.hidden)
+        out.env_kwargs = dict(out.env_kwargs or {})
+        return out
+
+    def to_dict(self) -> dict[str, Any]:
+        d = dataclasses.asdict(self)
+        d["hidden"] = list(self.hidden)
+        d["env_kwargs"] = dict(self.env_kwargs)
+        return d
+
+
+# ---------------------------------------------------------------------------- normalizer, GAE
+class RunningMeanStd:
+    """Mean and variance of everything passed to `update` (float64)."""
+
+    def __init__(self, shape: tuple[int, ...] = ()):
+        self.mean = np.zeros(shape, dtype=np.float64)
+        self.var = np.ones(shape, dtype=np.float64)
+        self.count = 1e-4
+
+    def update(self, x: np.ndarray) -> None:
+        x = np.asarray(x, dtype=np.float64).reshape((-1,) + self.mean.shape)
+        b_mean, b_var, b_count = x.mean(axis=0), x.var(axis=0), x.shape[0]
+        delta = b_mean - self.mean
+        total = self.count + b_count
+        self.mean = self.mean + delta * b_count / total
+        m2 = self.var * self.count + b_var * b_count + delta ** 2 * self.count * b_count / total
+        self.var = m2 / total
+        self.count = total
+
+    def state_dict(self) -> dict[str, Any]:
+        return {"mean": torch.from_numpy(self.mean.copy()), "var": torch.from_numpy(self.var.copy()),
+                "count": float(self.count)}
+
+    def load_state_dict(self, sd: Mapping[str, Any]) -> None:
+        self.mean = sd["mean"].double().numpy().copy()
+        self.var = sd["var"].double().numpy().copy()
+        self.count = float(sd["count"])
+
+
+def compute_gae(rewards: np.ndarray, values: np.ndarray, next_values: np.ndarray, terminated: np.ndarray,
+                ended: np.ndarray, gamma: float, lam: float) -> tuple[np.ndarray, np.ndarray]:
+    """Advantages and value targets (A + V) for arrays of shape (T,) or (T, num_envs), time first.
+
+    `next_values[t]` is V(s'_t), the value of the observation that step t led to (for a truncated
+    episode: its real last observation, not the next episode's first). The recursion is cut wherever
+    `ended` is set and after the last row; terminated steps do not bootstrap.
+    """
+    rewards = np.asarray(rewards, dtype=np.float64)
+    values = np.asarray(values, dtype=np.float64)
+    not_term = 1.0 - np.asarray(terminated, dtype=np.float64)
+    cont = 1.0 - np.asarray(ended, dtype=np.float64)
+    deltas = rewards + gamma * not_term * np.asarray(next_values, dtype=np.float64) - values
+    adv = np.zeros_like(deltas)
+    running = np.zeros_like(deltas[0])
+    for t in range(deltas.shape[0] - 1, -1, -1):
+        running = deltas[t] + gamma * lam * cont[t] * running
+        adv[t] = running
+    return adv, adv + values
+
+
+def orthogonal_init(module: nn.Module, gain: float = math.sqrt(2)) -> None:
+    """Orthogonal weights (gain sqrt 2) and zero biases for every hidden Linear layer of an `mlp`.
+
+    The last layer is left as `mlp(out_gain=...)` set it (0.01 for the policy mean, 1 for the value).
+    """
+    linears = [m for m in module.modules() if isinstance(m, nn.Linear)]
+    for lin in linears[:-1]:
+        nn.init.orthogonal_(lin.weight, gain=gain)
+        nn.init.zeros_(lin.bias)
+
+
+def resolve_device(device: str) -> torch.device:
+    if device in ("auto", None, ""):
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    if str(device).startswith("cuda") and not torch.cuda.is_available():
+        print("[ppo] device=cuda asked for but CUDA is not available: updating on the CPU", flush=True)
+        return torch.device("cpu")
+    return torch.device(device)
+
+
+# ---------------------------------------------------------------------------- learner
+class PPO:
+    """The PPO learner. Acting happens on a CPU copy of the networks; updates on `device`."""
+
+    def __init__(self, obs_dim: int, act_dim: int, cfg: TrainConfig, device: torch.device | str = "cpu"):
+        self.cfg, self.obs_dim, self.act_dim = cfg, obs_dim, act_dim
+        self.device = torch.device(device)
+        act_cls = ACTIVATIONS[cfg.activation]
+        self.policy = GaussianPolicy(obs_dim, act_dim, cfg.hidden, squash=False,
+                                     init_log_std=cfg.init_log_std, activation=act_cls)
+        orthogonal_init(self.policy.net)
+        self.value = mlp(obs_dim, 1, cfg.hidden, act_cls, out_gain=1.0)
+        orthogonal_init(self.value)
+        self.policy.to(self.device)
+        self.value.to(self.device)
+        self.pi_opt = torch.optim.Adam(self.policy.parameters(), lr=cfg.lr, eps=1e-5)
+        self.v_opt = torch.optim.Adam(self.value.parameters(), lr=cfg.lr, eps=1e-5)
+        self.obs_rms = RunningMeanStd((obs_dim,))
+        self.ret_rms = RunningMeanStd(())
+        if self.device.type == "cpu":
+            self.actor, self.critic = self.policy, self.value
+        else:
+            self.actor, self.critic = copy.deepcopy(self.policy).cpu(), copy.deepcopy(self.value).cpu()
+        self.updates = 0
+
+    # -- observation normalization (frozen unless `update_obs_stats` is called)
+    def normalize(self, obs: np.ndarray) -> np.ndarray:
+        if not self.cfg.norm_obs:
+            return np.asarray(obs, dtype=np.float32)
+        return normalize_obs(obs, self.obs_rms.mean, self.obs_rms.var, self.cfg.obs_clip, 1e-8)
+
+    def update_obs_stats(self, obs: np.ndarray) -> None:
+        if self.cfg.norm_obs:
+            self.obs_rms.update(obs)
+
+    @torch.no_grad()
+    def act(self, nobs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Sampled actions, their log-probabilities and V(s) for normalized observations (batched)."""
+        x = torch.from_numpy(nobs)
+        action, logp = self.actor.sample(x)
+        return action.numpy(), logp.numpy(), self.critic(x).squeeze(-1).numpy()
+
+    @torch.no_grad()
+    def values(self, nobs: np.ndarray) -> np.ndarray:
+        return self.critic(torch.from_numpy(nobs)).squeeze(-1).numpy()
+
+    def set_lr(self, lr: float) -> None:
+        for opt in (self.pi_opt, self.v_opt):
+            for group in opt.param_groups:
+                group["lr"] = lr
+
+    def update(self, batch: Mapping[str, np.ndarray]) -> dict[str, float]:
+        """Epochs of minibatch updates on one rollout (flattened arrays: obs, actions, logp, adv, returns)."""
+        cfg, dev = self.cfg, self.device
+        obs = torch.as_tensor(batch["obs"], device=dev)
+        actions = torch.as_tensor(batch["actions"], device=dev)
+        old_logp = torch.as_tensor(batch["logp"], device=dev)
+        adv_all = torch.as_tensor(batch["adv"], dtype=torch.float32, device=dev)
+        returns = torch.as_tensor(batch["returns"], dtype=torch.float32, device=dev)
+        n = obs.shape[0]
+        mb = max(1, min(cfg.minibatch_size, n))
+        stats = collections.defaultdict(list)
+        stop = False
+        for _ in range(cfg.epochs):
+            perm = torch.randperm(n).to(dev)
+            for start in range(0, n, mb):
+                idx = perm[start:start + mb]
+                dist = self.policy.distribution(obs[idx])
+                logp = dist.log_prob(actions[idx]).sum(-1)
+                entropy = dist.entropy().sum(-1).mean()
+                log_ratio = logp - old_logp[idx]
+                ratio = log_ratio.exp()
+                adv = adv_all[idx]
+                if cfg.norm_adv and adv.numel() > 1:
+                    adv = (adv - adv.mean()) / (adv.std() + 1e-8)
+                pg_loss = -torch.min(ratio * adv, ratio.clamp(1 - cfg.clip, 1 + cfg.clip) * adv).mean()
+                v_loss = 0.5 * (self.value(obs[idx]).squeeze(-1) - returns[idx]).pow(2).mean()
+                loss = pg_loss - cfg.ent_coef * entropy + cfg.vf_coef * v_loss
+                self.pi_opt.zero_grad(set_to_none=True)
+                self.v_opt.zero_grad(set_to_none=True)
+                loss.backward()
+                if cfg.max_grad_norm and cfg.max_grad_norm > 0:
+                    nn.utils.clip_grad_norm_(self.policy.parameters(), cfg.max_grad_norm)
+                    nn.utils.clip_grad_norm_(self.value.parameters(), cfg.max_grad_norm)
+                self.pi_opt.step()
+                self.v_opt.step()
+                with torch.no_grad():   # k3 estimator of KL(old || new)
+                    approx_kl = ((ratio - 1) - log_ratio).mean()
+                    clipfrac = ((ratio - 1).abs() > cfg.clip).float().mean()
+                stats["pg_loss"].append(pg_loss.detach())
+                stats["v_loss"].append(v_loss.detach())
+                stats["entropy"].append(entropy.detach())
+                stats["approx_kl"].append(approx_kl)
+                stats["clipfrac"].append(clipfrac)
+                if cfg.target_kl is not None and float(approx_kl) > cfg.target_kl:
+                    stop = True
+                    break
+            if stop:
+                break
+        self.updates += 1
+        self._sync_actor()
+        out = {k: float(torch.stack(v).mean()) for k, v in stats.items()}
+        out["std"] = float(self.policy.log_std.exp().mean())
+        return out
+
+    def _sync_actor(self) -> None:
+        if self.actor is not self.policy:
+            self.actor.load_state_dict(self.policy.state_dict())
+            self.critic.load_state_dict(self.value.state_dict())
+
+    # -- experts and checkpoints
+    def make_expert(self, metadata: Mapping[str, Any] | None = None) -> ExpertPolicy:
+        cfg = self.cfg
+        mean = self.obs_rms.mean if cfg.norm_obs else np.zeros(self.obs_dim)
+        var = self.obs_rms.var if cfg.norm_obs else np.full(self.obs_dim, 1.0 - 1e-8)
+        expert = ExpertPolicy(self.obs_dim, self.act_dim, cfg.hidden, cfg.activation, mean, var,
+                              obs_clip=cfg.obs_clip if cfg.norm_obs else 0.0, obs_eps=1e-8, metadata=metadata)
+        expert.policy.load_state_dict({k: v.detach().cpu() for k, v in self.policy.state_dict().items()})
+        return expert
+
+    def state_dict(self) -> dict[str, Any]:
+        cpu = lambda sd: {k: v.detach().cpu() for k, v in sd.items()}  # noqa: E731
+        return {"policy": cpu(self.policy.state_dict()), "value": cpu(self.value.state_dict()),
+                "pi_opt": self.pi_opt.state_dict(), "v_opt": self.v_opt.state_dict(),
+                "obs_rms": self.obs_rms.state_dict(), "ret_rms": self.ret_rms.state_dict(),
+                "updates": self.updates}
+
+    def load_state_dict(self, sd: Mapping[str, Any]) -> None:
+        self.policy.load_state_dict(sd["policy"])
+        self.value.load_state_dict(sd["value"])
+        self.pi_opt.load_state_dict(sd["pi_opt"])
+        self.v_opt.load_state_dict(sd["v_opt"])
+        self.obs_rms.load_state_dict(sd["obs_rms"])
+        self.ret_rms.load_state_dict(sd["ret_rms"])
+        self.updates = int(sd["updates"])
+        self._sync_actor()
+
+
+# ---------------------------------------------------------------------------- training loop
+class PPOTrainer:
+    """Train an expert for one Task-ID into `cfg.out_dir`; resumes from `out_dir/checkpoint.pt` if present.
+
+    Files: `checkpoint.pt` (everything needed to resume), `best.pt` (the expert with the best evaluation
+    so far), `final.pt` (the expert at the end), `snapshots/step_XXXXXXXXX.pt` (experts at fractions of
+    training, for ranked `preference` datasets), `evals.jsonl` (one line per evaluation).
+    """
+
+    def __init__(self, cfg: TrainConfig | Mapping[str, Any], log: Callable[[str], None] | None = None):
+        from loco_il.environments import LocoEnv
+        from loco_il.experts.vec import make_vec_env
+
+        self.cfg = cfg if isinstance(cfg, TrainConfig) else TrainConfig.from_mapping(cfg)
+        cfg = self.cfg
+        self.log = log or (lambda s: print(s, flush=True))
+        torch.set_num_threads(max(1, int(cfg.torch_threads)))
+        probe = LocoEnv.make(cfg.task, **cfg.env_kwargs)
+        self.task_id = probe.task_id
+        self.obs_dim = probe.obs_spec.dim
+        self.act_dim = probe.info.action_space.shape[0]
+        self.horizon = probe.info.horizon
+        probe.stop()
+        self.out_dir = Path(cfg.out_dir)
+        self.out_dir.mkdir(parents=True, exist_ok=True)
+        self.ckpt_path = self.out_dir / "checkpoint.pt"
+        self.device = resolve_device(cfg.device)
+
+        torch.manual_seed(cfg.seed)
+        self.agent = PPO(self.obs_dim, self.act_dim, cfg, self.device)
+        self.step = 0
+        self.iteration = 0
+        self.wall_time = 0.0          # summed over all sessions of this run
+        self.best_eval = -math.inf
+        self.last_eval: dict[str, Any] | None = None
+        self.last_eval_step = -1
+        self.last_snapshot_step = -1
+        self.recent: collections.deque = collections.deque(maxlen=50)   # (return, length) of finished episodes
+        self.resumed_from: int | None = None
+        if self.ckpt_path.exists():
+            self._load_checkpoint()
+
+        self._make_vec = make_vec_env
+        self.envs = None
+        self.eval_envs = None
+
+    # ------------------------------------------------------------------ checkpoints
+    def _rng_state(self) -> dict[str, Any]:
+        return {"torch": torch.get_rng_state()}
+
+    def save_checkpoint(self) -> None:
+        data = {"format": CHECKPOINT_FORMAT, "task_id": self.task_id, "config": self.cfg.to_dict(),
+                "step": self.step, "iteration": self.iteration, "wall_time": self.wall_time + self._session_time(),
+                "agent": self.agent.state_dict(), "rng": self._rng_state(), "best_eval": self.best_eval,
+                "last_eval": self.last_eval, "last_eval_step": self.last_eval_step,
+                "last_snapshot_step": self.last_snapshot_step,
+                "recent": [list(map(float, r)) for r in self.recent]}
+        atomic_torch_save(data, self.ckpt_path)
+        self._last_ckpt_time = time.time()
+
+    def _load_checkpoint(self) -> None:
+        data = torch.load(self.ckpt_path, map_location="cpu", weights_only=True)
+        if data.get("format") != CHECKPOINT_FORMAT:
+            raise ValueError(f"{self.ckpt_path} is not a PPO checkpoint of this version")
+        if data["task_id"] != self.task_id:
+            raise ValueError(f"{self.ckpt_path} belongs to {data['task_id']}, not {self.task_id}; "
+                             "use another out_dir")
+        old = data["config"]
+        for key in ("hidden", "activation", "norm_obs"):
+            if old.get(key) != self.cfg.to_dict()[key]:
+                raise ValueError(f"cannot resume {self.ckpt_path}: {key} was {old.get(key)!r}, "
+                                 f"now {self.cfg.to_dict()[key]!r}")
+        self.agent.load_state_dict(data["agent"])
+        self.step, self.iteration = int(data["step"]), int(data["iteration"])
+        self.wall_time = float(data["wall_time"])
+        self.best_eval = float(data["best_eval"])
+        self.last_eval = data["last_eval"]
+        self.last_eval_step = int(data["last_eval_step"])
+        self.last_snapshot_step = int(data["last_snapshot_step"])
+        self.recent.extend(tuple(r) for r in data["recent"])
+        torch.set_rng_state(data["rng"]["torch"])
+        self.resumed_from = self.step
+
+    # ------------------------------------------------------------------ evaluation and experts
+    def _metadata(self, ev: Mapping[str, Any] | None) -> dict[str, Any]:
+        return {"task_id": self.task_id, "training_steps": self.step, "algorithm": "PPO",
+                "eval_return": None if ev is None else ev["return_mean"],
+                "eval_return_std": None if ev is None else ev["return_std"],
+                "eval_episodes": None if ev is None else ev["episodes"], "seed": self.cfg.seed,
+                "total_steps": self.cfg.total_steps}
+
+    def evaluate(self) -> dict[str, Any]:
+        """Deterministic episodes of the current policy; the normalizer is frozen (read-only) here."""
+        from loco_il.experts.vec import evaluate
+        cfg = self.cfg
+        if self.eval_envs is None:
+            n = cfg.eval_envs or min(cfg.eval_episodes, cfg.num_envs)
+            self.eval_envs = self._make_vec(self.task_id, max(1, n), cfg.async_envs, autoreset=True,
+                                            env_kwargs=cfg.env_kwargs)
+        expert = self.agent.make_expert()
+        t0 = time.time()
+        returns, lengths = evaluate(expert.act, self.eval_envs, cfg.eval_episodes, seed=10_000 + 1000 * cfg.seed)
+        ev = {"step": self.step, "return_mean": float(returns.mean()), "return_std": float(returns.std()),
+              "length_mean": float(lengths.mean()), "episodes": int(len(returns)),
+              "returns": [float(r) for r in returns], "eval_time_s": round(time.time() - t0, 3)}
+        self.last_eval, self.last_eval_step = ev, self.step
+        with open(self.out_dir / "evals.jsonl", "a") as f:
+            f.write(json.dumps({k: v for k, v in ev.items() if k != "returns"}) + "\n")
+        if ev["return_mean"] > self.best_eval:
+            self.best_eval = ev["return_mean"]
+            self.agent.make_expert(self._metadata(ev)).save(self.out_dir / "best.pt")
+        return ev
+
+    def _snapshot_thresholds(self) -> list[int]:
+        f = self.cfg.snapshot_every
+        if not f or f <= 0:
+            return []
+        k = int(math.floor(1.0 / f + 1e-9))
+        return [int(round(i * f * self.cfg.total_steps)) for i in range(1, k + 1)]
+
+    def _maybe_snapshot(self, final: bool = False) -> None:
+        due = [s for s in self._snapshot_thresholds() if self.last_snapshot_step < s <= self.step]
+        initial = self.cfg.snapshot_initial and self.step == 0 and self.last_snapshot_step < 0 \
+            and self.cfg.snapshot_every
+        if not due and not initial:
+            return
+        ev = self.last_eval if self.last_eval_step == self.step else self.evaluate()
+        path = self.out_dir / "snapshots" / f"step_{self.step:09d}.pt"
+        meta = self._metadata(ev)
+        meta["fraction"] = round(self.step / max(1, self.cfg.total_steps), 4)
+        self.agent.make_expert(meta).save(path)
+        self.last_snapshot_step = self.step
+
+    # ------------------------------------------------------------------ rollouts
+    def _session_time(self) -> float:
+        return time.time() - self._t0 if hasattr(self, "_t0") else 0.0
+
+    def _reset_envs(self) -> None:
+        cfg = self.cfg
+        if self.envs is None:
+            self.envs = self._make_vec(self.task_id, cfg.num_envs, cfg.async_envs, autoreset=True,
+                                       env_kwargs=cfg.env_kwargs)
+        base = int(np.random.SeedSequence([cfg.seed, self.iteration]).generate_state(1)[0]) % (2 ** 31 - cfg.num_envs)
+        self._obs, _ = self.envs.reset(seed=[base + i for i in range(cfg.num_envs)])
+        self._ep_ret = np.zeros(cfg.num_envs)
+        self._ep_len = np.zeros(cfg.num_envs, dtype=np.int64)
+        self._disc_ret = np.zeros(cfg.num_envs)
+
+    def collect(self) -> dict[str, np.ndarray]:
+        """One rollout of num_steps per env; returns the flattened training batch."""
+        cfg, agent = self.cfg, self.agent
+        T, N = cfg.num_steps, cfg.num_envs
+        obs_b = np.zeros((T, N, self.obs_dim), dtype=np.float32)
+        act_b = np.zeros((T, N, self.act_dim), dtype=np.float32)
+        logp_b, val_b, rew_b = (np.zeros((T, N), dtype=np.float32) for _ in range(3))
+        next_val_b = np.zeros((T, N), dtype=np.float32)
+        term_b, end_b = np.zeros((T, N), dtype=bool), np.zeros((T, N), dtype=bool)
+        for t in range(T):
+            agent.update_obs_stats(self._obs)
+            nobs = agent.normalize(self._obs)
+            action, logp, value = agent.act(nobs)
+            next_obs, reward, terminated, truncated, infos = self.envs.step(np.clip(action, -1.0, 1.0))
+            reward = np.asarray(reward, dtype=np.float64)
+            ended = terminated | truncated
+            self._ep_ret += reward
+            self._ep_len += 1
+            if cfg.norm_reward:
+                self._disc_ret = self._disc_ret * cfg.gamma + reward
+                agent.ret_rms.update(self._disc_ret)
+                reward = np.clip(reward / math.sqrt(agent.ret_rms.var + 1e-8), -cfg.reward_clip, cfg.reward_clip)
+                self._disc_ret[ended] = 0.0
+            bootstrap = truncated & ~terminated
+            if bootstrap.any():   # V of the real last observation of time-limited episodes
+                idx = np.flatnonzero(bootstrap)
+                final = np.stack([infos["final_obs"][i] for i in idx])
+                next_val_b[t, idx] = agent.values(agent.normalize(final))
+            for i in np.flatnonzero(ended):
+                self.recent.append((float(self._ep_ret[i]), int(self._ep_len[i])))
+                self._ep_ret[i], self._ep_len[i] = 0.0, 0
+            obs_b[t], act_b[t], logp_b[t], val_b[t], rew_b[t] = nobs, action, logp, value, reward
+            term_b[t], end_b[t] = terminated, ended
+            self._obs = next_obs
+        last_values = agent.values(agent.normalize(self._obs))
+        following = np.concatenate([val_b[1:], last_values[None]], axis=0)
+        next_val_b = np.where(end_b, next_val_b, following)
+        adv, returns = compute_gae(rew_b, val_b, next_val_b, term_b, end_b, cfg.gamma, cfg.gae_lambda)
+        self.step += T * N
+        flat = lambda a: a.reshape((T * N,) + a.shape[2:])  # noqa: E731
+        return {"obs": flat(obs_b), "actions": flat(act_b), "logp": flat(logp_b),
+                "adv": flat(adv.astype(np.float32)), "returns": flat(returns.astype(np.float32))}
+
+    # ------------------------------------------------------------------ main loop
+    def train(self, callback: Callable[["PPOTrainer"], None] | None = None) -> dict[str, Any]:
+        """Train until `cfg.total_steps`; returns the final summary (also printed as the last JSON line).
+
+        `callback(trainer)` runs after every iteration (after any checkpoint of that iteration).
+        """
+        cfg = self.cfg
+        self._t0 = self._last_ckpt_time = self._last_log = time.time()
+        start_step = self.step
+        if self.resumed_from is not None:
+            self.log(f"[ppo] resuming {self.task_id} from {self.ckpt_path} at step {self.step}")
+        self.log(f"[ppo] {self.task_id}: obs {self.obs_dim}, act {self.act_dim}, {cfg.num_envs} envs "
+                 f"({'async' if _is_async(cfg) else 'sync'}), batch {cfg.num_envs * cfg.num_steps}, "
+                 f"update on {self.device}, total {cfg.total_steps} steps -> {self.out_dir}")
+        try:
+            if self.step < cfg.total_steps:
+                self._maybe_snapshot()
+                self._reset_envs()
+            stats: dict[str, float] = {}
+            while self.step < cfg.total_steps:
+                if cfg.lr_decay:
+                    self.agent.set_lr(cfg.lr * max(0.0, 1.0 - self.step / cfg.total_steps))
+                batch = self.collect()
+                stats = self.agent.update(batch)
+                self.iteration += 1
+                if cfg.eval_interval and self.step - max(self.last_eval_step, 0) >= cfg.eval_interval:
+                    self.evaluate()
+                self._maybe_snapshot()
+                now = time.time()
+                if now - self._last_log >= cfg.log_interval_s:
+                    self._progress(start_step, stats)
+                    self._last_log = now
+                if now - self._last_ckpt_time >= cfg.checkpoint_minutes * 60:
+                    self.save_checkpoint()
+                if callback is not None:
+                    callback(self)
+            final_ev = self.last_eval if (self.last_eval_step == self.step and self.last_eval) else self.evaluate()
+            self._maybe_snapshot()
+            if stats:
+                self._progress(start_step, stats)
+            self.save_checkpoint()
+            self.agent.make_expert(self._metadata(final_ev)).save(self.out_dir / "final.pt")
+        finally:
+            self.close()
+        session = self._session_time()
+        summary = {"task_id": self.task_id, "eval_return_mean": round(final_ev["return_mean"], 2),
+                   "eval_return_std": round(final_ev["return_std"], 2), "eval_episodes": final_ev["episodes"],
+                   "best_eval_return": round(self.best_eval, 2), "env_steps": self.step,
+                   "wall_time_s": round(self.wall_time + session, 1), "session_wall_time_s": round(session, 1),
+                   "steps_per_s": round((self.step - start_step) / max(session, 1e-9), 1),
+                   "resumed_from": self.resumed_from, "device": str(self.device), "num_envs": cfg.num_envs,
+                   "out_dir": str(self.out_dir), "best_path": str(self.out_dir / "best.pt")}
+        self.log(json.dumps(summary))
+        return summary
+
+    def _progress(self, start_step: int, stats: Mapping[str, float]) -> None:
+        elapsed = self._session_time()
+        sps = (self.step - start_step) / max(elapsed, 1e-9)
+        rets = [r for r, _ in self.recent]
+        ret = f"{np.mean(rets):.1f} (n={len(rets)})" if rets else "n/a"
+        length = f"{np.mean([n for _, n in self.recent]):.0f}" if rets else "n/a"
+        ev = f"{self.last_eval['return_mean']:.1f}" if self.last_eval else "n/a"
+        self.log(f"[ppo] step {self.step}/{self.cfg.total_steps} ({100 * self.step / self.cfg.total_steps:.0f}%) | "
+                 f"{sps:.0f} steps/s | return {ret} len {length} | eval {ev} (best {self.best_eval:.1f}) | "
+                 f"t {self.wall_time + elapsed:.0f}s | kl {stats.get('approx_kl', 0):.4f} "
+                 f"clip {stats.get('clipfrac', 0):.3f} vloss {stats.get('v_loss', 0):.3f} std {stats.get('std', 0):.3f}")
+
+    def close(self) -> None:
+        for attr in ("envs", "eval_envs"):
+            env = getattr(self, attr, None)
+            if env is not None:
+                env.close()
+                setattr(self, attr, None)
+
+
+def _is_async(cfg: TrainConfig) -> bool:
+    from loco_il.experts.vec import resolve_async
+    return resolve_async(cfg.async_envs, cfg.num_envs)
+
+
+def train(cfg: TrainConfig | Mapping[str, Any], **overrides: Any) -> dict[str, Any]:
+    """Convenience: `train({"task": "Hopper.run", "total_steps": 100_000, "out_dir": "runs/x"})`."""
+    if not isinstance(cfg, TrainConfig):
+        cfg = TrainConfig.from_mapping(dict(cfg, **overrides))
+    elif overrides:
+        cfg = dataclasses.replace(cfg, **overrides)
+    return PPOTrainer(cfg).train()

@@ -1,0 +1,107 @@
+"""Vectorized stepping of loco_il environments with Gymnasium's vector API.
+
+* `make_vec_env(task_id, num_envs, async_mode="auto")`: `SyncVectorEnv` (all envs in this process)
+  or `AsyncVectorEnv` (one subprocess per env; worth it with many cores). "auto" picks async when
+  `num_envs > 1` and the machine has at least `num_envs` / 2 + 1 ... see `resolve_async`.
+* Training envs auto-reset in Gymnasium's SAME_STEP mode: on the step that ends an episode the
+  returned observation is the next episode's first one and the real last observation is in
+  `infos["final_obs"][i]` (needed to bootstrap V(s_T) on truncation).
+* `evaluate(act_fn, vec_env, episodes, seed)`: evaluation episodes spread over the envs of an
+  auto-resetting vector env, reproducible given the seed.
+
+Each env is a `LocoGymEnv` behind `_LeanEnv`, which drops the per-step `info` dict (reward terms
+are not needed for training, and passing them between processes costs time) and, once an episode
+ended, keeps returning its last observation with zero reward instead of stepping a finished (perhaps
+diverged) simulation.
+"""
+from __future__ import annotations
+
+import functools
+import os
+from typing import Any, Callable, Mapping
+
+import gymnasium as gym
+import numpy as np
+from gymnasium.vector import AsyncVectorEnv, AutoresetMode, SyncVectorEnv, VectorEnv
+
+
+class _LeanEnv(gym.Wrapper):
+    def __init__(self, env: gym.Env):
+        super().__init__(env)
+        self._done = False
+        self._last: np.ndarray | None = None
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        obs, _ = self.env.reset(seed=seed, options=options)
+        self._done, self._last = False, obs
+        return obs, {}
+
+    def step(self, action):
+        if self._done:
+            return self._last, 0.0, True, False, {}
+        obs, reward, terminated, truncated, _ = self.env.step(action)
+        self._done, self._last = bool(terminated or truncated), obs
+        return obs, reward, terminated, truncated, {}
+
+
+def _make_env(task_id: str, env_kwargs: Mapping[str, Any] | None = None) -> gym.Env:
+    from loco_il.environments.gym_adapter import LocoGymEnv
+    return _LeanEnv(LocoGymEnv(task_id, **dict(env_kwargs or {})))
+
+
+def resolve_async(async_mode: bool | str | None, num_envs: int) -> bool:
+    """"auto"/None: subprocesses when there are >1 envs and at least 4 cores; else the given bool."""
+    if isinstance(async_mode, str):
+        mode = async_mode.strip().lower()
+        if mode in ("auto", ""):
+            async_mode = None
+        elif mode in ("true", "1", "yes", "async"):
+            async_mode = True
+        elif mode in ("false", "0", "no", "sync"):
+            async_mode = False
+        else:
+            raise ValueError(f"async must be auto, true or false; got {async_mode!r}")
+    if async_mode is None:
+        return num_envs > 1 and (os.cpu_count() or 1) >= 4
+    return bool(async_mode)
+
+
+def make_vec_env(task_id: str, num_envs: int, async_mode: bool | str | None = "auto", autoreset: bool = True,
+                 env_kwargs: Mapping[str, Any] | None = None, context: str | None = "forkserver") -> VectorEnv:
+    """A Gymnasium vector env of `num_envs` copies of `task_id` (see the module docstring)."""
+    if num_envs < 1:
+        raise ValueError(f"num_envs must be >= 1, got {num_envs}")
+    fns: list[Callable[[], gym.Env]] = [functools.partial(_make_env, task_id, dict(env_kwargs or {}))
+                                        for _ in range(num_envs)]
+    mode = AutoresetMode.SAME_STEP if autoreset else AutoresetMode.DISABLED
+    if resolve_async(async_mode, num_envs):
+        return AsyncVectorEnv(fns, shared_memory=True, copy=True, context=context, autoreset_mode=mode)
+    return SyncVectorEnv(fns, copy=True, autoreset_mode=mode)
+
+
+def evaluate(act_fn: Callable[[np.ndarray], np.ndarray], vec_env: VectorEnv, episodes: int,
+             seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """Run `episodes` episodes with `act_fn` (batched obs -> batched actions); returns (returns, lengths).
+
+    Env i is reset with seed `seed + i` and runs episodes i, i + n, i + 2n, ... (n = num_envs; the
+    auto-reset draws the later start states from its seeded generator), so the result is a function
+    of (act_fn, seed, n). Envs that finished their share keep stepping until all have; those steps
+    are ignored.
+    """
+    n = vec_env.num_envs
+    quota = np.array([episodes // n + (1 if i < episodes % n else 0) for i in range(n)])
+    done: list[list[tuple[float, int]]] = [[] for _ in range(n)]
+    obs, _ = vec_env.reset(seed=[seed + i for i in range(n)])
+    ret, length = np.zeros(n), np.zeros(n, dtype=np.int64)
+    while any(len(done[i]) < quota[i] for i in range(n)):
+        actions = np.asarray(act_fn(obs), dtype=np.float32)
+        obs, reward, terminated, truncated, _ = vec_env.step(actions)
+        ret += reward
+        length += 1
+        ended = np.asarray(terminated) | np.asarray(truncated)
+        for i in np.flatnonzero(ended):
+            if len(done[i]) < quota[i]:
+                done[i].append((float(ret[i]), int(length[i])))
+        ret[ended], length[ended] = 0.0, 0
+    ordered = [done[k % n][k // n] for k in range(episodes)]
+    return np.array([r for r, _ in ordered]), np.array([n_ for _, n_ in ordered], dtype=np.int64)

@@ -1,0 +1,52 @@
+"""Roll out a policy (random by default) on a Task-ID, print returns, optionally write an mp4.
+
+    python -m loco_il.rollout --task Hopper.run.perfect --episodes 3 --video rollout.mp4
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import time
+
+import numpy as np
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--task", default="Hopper.run.perfect", help="Task-ID, e.g. UnitreeH1.walk.real")
+    parser.add_argument("--episodes", type=int, default=3)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--video", default=None, help="write the first episode to this mp4 file")
+    parser.add_argument("--max-steps", type=int, default=None, help="cap on steps per episode")
+    args = parser.parse_args(argv)
+    os.environ.setdefault("MUJOCO_GL", "egl")
+
+    from loco_il import LocoEnv
+    from loco_il.environments.rendering import record_episode
+
+    env = LocoEnv.make(args.task, seed=args.seed)
+    print(f"{env.task_id}: obs dim {env.obs_spec.dim}, action dim {env.info.action_space.shape[0]}, "
+          f"control dt {env.dt:.4f} s, horizon {env.info.horizon}")
+    rng = np.random.default_rng(args.seed)
+    returns = []
+    for episode in range(args.episodes):
+        start = time.perf_counter()
+        if episode == 0 and args.video:
+            result = record_episode(env, None, args.video, max_steps=args.max_steps)
+            total, steps = result["return"], result["steps"]
+            print(f"wrote {result['path']}")
+        else:
+            env.reset()
+            total, steps = 0.0, 0
+            for steps in range(1, (args.max_steps or env.info.horizon) + 1):
+                _, reward, absorbing, _ = env.step(rng.uniform(-1, 1, env.info.action_space.shape))
+                total += reward
+                if absorbing:
+                    break
+        returns.append(total)
+        print(f"episode {episode}: return {total:.2f} over {steps} steps ({time.perf_counter() - start:.2f} s)")
+    print(f"random policy: mean return {np.mean(returns):.2f} +- {np.std(returns):.2f} over {len(returns)} episodes")
+
+
+if __name__ == "__main__":
+    main()
