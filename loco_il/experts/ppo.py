@@ -139,7 +139,8 @@ class RunningMeanStd:
         self.count = total
 
     def state_dict(self) -> dict[str, Any]:
-        return {"mean": torch.from_numpy(self.mean.copy()), "var": torch.from_numpy(self.var.copy()),
+        return {"mean": torch.from_numpy(np.array(self.mean, dtype=np.float64)),
+                "var": torch.from_numpy(np.array(self.var, dtype=np.float64)),
                 "count": float(self.count)}
 
     def load_state_dict(self, sd: Mapping[str, Any]) -> None:
@@ -526,6 +527,7 @@ class PPOTrainer:
         """
         cfg = self.cfg
         self._t0 = self._last_ckpt_time = self._last_log = time.time()
+        self._last_log_step = -1
         start_step = self.step
         if self.resumed_from is not None:
             self.log(f"[ppo] resuming {self.task_id} from {self.ckpt_path} at step {self.step}")
@@ -549,14 +551,14 @@ class PPOTrainer:
                 now = time.time()
                 if now - self._last_log >= cfg.log_interval_s:
                     self._progress(start_step, stats)
-                    self._last_log = now
+                    self._last_log, self._last_log_step = now, self.step
                 if now - self._last_ckpt_time >= cfg.checkpoint_minutes * 60:
                     self.save_checkpoint()
                 if callback is not None:
                     callback(self)
             final_ev = self.last_eval if (self.last_eval_step == self.step and self.last_eval) else self.evaluate()
             self._maybe_snapshot()
-            if stats:
+            if stats and self._last_log_step != self.step:
                 self._progress(start_step, stats)
             self.save_checkpoint()
             self.agent.make_expert(self._metadata(final_ev)).save(self.out_dir / "final.pt")

@@ -205,6 +205,7 @@ def test_unit_detection(tmp_path):
         ("10 100 0 0 0 0 0 0 0 0 0 0", "10 100 0 0 0 0 0 0 0 0 0", 26, "11 values"),
         ("0 100 0 0 0 0 0 0 90 0 0 0", "0 100 0 0 0 0 0 0 abc 0 0 0", 25, "'abc'"),
         ("Frames: 3", "Frames: 4", 26, "declares 4 frames"),
+        ("Frames: 3", "Frames: 2", 26, "more frame lines"),
         ("Frame Time: 0.04", "Frame Tme: 0.04", 23, "Frame Time"),
         ("      OFFSET 0 0 5\n", "      OFSET 0 0 5\n", 16, "OFSET"),
     ],
@@ -239,6 +240,10 @@ def test_resample_slice_scale(tmp_path):
     mid = pos_up[1]
     np.testing.assert_allclose(mid[2], [-0.1 * np.sin(np.pi / 4), 0, 0.9 - 0.1 * np.cos(np.pi / 4)],
                                atol=1e-12)
+    # a quarter of the way the knee is at 22.5 degrees (constant angular speed)
+    quarter = clip.resample(4 * clip.fps).global_positions()[1]
+    a = np.pi / 8
+    np.testing.assert_allclose(quarter[2], [-0.1 * np.sin(a), 0, 0.9 - 0.1 * np.cos(a)], atol=1e-12)
     # root translation is linear
     np.testing.assert_allclose(pos_up[3, 0], [0, 0.05, 1.0], atol=1e-12)
     down = up.resample(25.0)

@@ -37,6 +37,13 @@ Conventions of the returned :class:`~.skeleton.MotionClip`:
   inches looks like an adult in CMU units); pass ``scale`` (metres per file unit)
   to override.  The chosen unit and
   scale are recorded in ``clip.meta``.
+* **CMU proportions.**  In the cgspeed CMU conversions the neck base
+  (``lowerneck``) and the collars sit on ``Chest2`` with a zero offset, and the head
+  end site is only ~0.5 m above ``Hips``; compared with DeepMimic's humanoid the
+  upper body is ~0.2 m shorter, while the legs agree within a few centimetres.
+  ``Hips`` (the root, canonical ``pelvis``) lies ~0.1 m above the hip joints.
+  Retargeting should therefore fit limbs by direction/ratio rather than copy
+  absolute upper-body heights.
 * **Frame rate.**  ``fps = 1 / Frame Time``, rounded to the nearest integer when
   within 0.01 % of it (``Frame Time: .0083333`` gives 120.0).
 * **Ground.**  No grounding is applied: heights are the capture's (the CMU floor is
@@ -236,10 +243,12 @@ def _parse_hierarchy(tok: _Tokens) -> list:
                 if kind == "End":
                     raise tok.error("End Site cannot have children", ln)
                 parse_block("JOINT", ln, idx)
-            elif t == "End":
+            elif t.upper() == "END":
                 if kind == "End":
                     raise tok.error("End Site cannot have children", ln)
-                tok.expect("Site")
+                st, sln = tok.next("'Site'")
+                if st.upper() != "SITE":
+                    raise tok.error(f"expected 'Site' after 'End', found {st!r}", sln)
                 parse_block("End", ln, idx)
             else:
                 raise tok.error(f"unexpected {t!r} in joint {name or 'End Site'!r}", ln)
@@ -359,7 +368,8 @@ def parse_bvh(text: str, where: str = "<bvh>", scale: Optional[float] = None,
         if not s:
             continue
         if row >= n_frames:
-            raise BVHParseError(f"{where}:{ln + 1}: more frame lines than the declared {n_frames} frames")
+            raise BVHParseError(f"{where}:{ln + 1}: more frame lines than the "
+                                f"declared {n_frames} frames")
         if len(s) != n_chan:
             raise BVHParseError(f"{where}:{ln + 1}: frame {row} has {len(s)} values, "
                                 f"the hierarchy declares {n_chan} channels")
@@ -387,8 +397,8 @@ def parse_bvh(text: str, where: str = "<bvh>", scale: Optional[float] = None,
     if dup:
         raise BVHParseError(f"{where}: duplicate joint names {sorted(dup)}")
 
-    map_key, mapping = _choose_name_map([joints[i]["name"] for i in keep if not joints[i]["site"]],
-                                        name_map)
+    real_names = [joints[i]["name"] for i in keep if not joints[i]["site"]]
+    map_key, mapping = _choose_name_map(real_names, name_map)
     std_names = []
     for i in keep:
         j = joints[i]

@@ -54,6 +54,7 @@ from .skeleton import (
 
 __all__ = [
     "DeepMimicFormatError",
+    "DeepMimicCharacter",
     "load_deepmimic",
     "parse_deepmimic",
     "load_deepmimic_character",
@@ -130,8 +131,9 @@ class DeepMimicFormatError(ValueError):
     """A malformed DeepMimic motion or character file."""
 
 
-class _Character:
-    """Joint and site layout in DeepMimic axes."""
+class DeepMimicCharacter:
+    """A character's joints ``(name, type, parent index, offset)`` and sites
+    ``(standard name, parent index, offset)``, in DeepMimic axes."""
 
     def __init__(self, joints: list, sites: list, source: str):
         self.joints = joints  # [(name, type, parent index, offset)]
@@ -143,12 +145,12 @@ class _Character:
         return 1 + sum(_DOFS[t] for _, t, _, _ in self.joints)
 
 
-def _default_character() -> _Character:
+def _default_character() -> DeepMimicCharacter:
     names = [j[0] for j in HUMANOID3D_JOINTS]
     joints = [(n, t, -1 if p is None else names.index(p), np.array(o, dtype=float))
               for n, t, p, o in HUMANOID3D_JOINTS]
     sites = [(s, names.index(p), np.array(o, dtype=float)) for s, p, o in HUMANOID3D_SITES]
-    return _Character(joints, sites, "built-in humanoid3d")
+    return DeepMimicCharacter(joints, sites, "built-in humanoid3d")
 
 
 def _read_json(path: Path, what: str):
@@ -162,7 +164,7 @@ def _read_json(path: Path, what: str):
         raise DeepMimicFormatError(f"{path}:{e.lineno}: invalid JSON in {what}: {e.msg}") from e
 
 
-def _parse_character(data, where: str) -> _Character:
+def _parse_character(data, where: str) -> DeepMimicCharacter:
     try:
         raw = data["Skeleton"]["Joints"]
     except (KeyError, TypeError):
@@ -171,7 +173,8 @@ def _parse_character(data, where: str) -> _Character:
     joints = []
     for i, j in enumerate(raw):
         try:
-            jid, name, jtype, parent = int(j["ID"]), str(j["Name"]), str(j["Type"]), int(j["Parent"])
+            jid, name = int(j["ID"]), str(j["Name"])
+            jtype, parent = str(j["Type"]), int(j["Parent"])
             off = np.array([float(j.get(k, 0.0)) for k in ("AttachX", "AttachY", "AttachZ")])
             theta = [float(j.get(k, 0.0)) for k in ("AttachThetaX", "AttachThetaY", "AttachThetaZ")]
         except (KeyError, TypeError, ValueError) as e:
@@ -207,19 +210,22 @@ def _parse_character(data, where: str) -> _Character:
         if std in ("l_ankle", "r_ankle") and shape == "box":
             side = std[0]
             bottom = centre[1] - size[1] / 2
-            sites.append((f"{side}_toe", names.index(bname), np.array([centre[0] + size[0] / 2, bottom, centre[2]])))
-            sites.append((f"{side}_heel", names.index(bname), np.array([centre[0] - size[0] / 2, bottom, centre[2]])))
+            half = size[0] / 2
+            ji = names.index(bname)
+            sites.append((f"{side}_toe", ji, np.array([centre[0] + half, bottom, centre[2]])))
+            sites.append((f"{side}_heel", ji, np.array([centre[0] - half, bottom, centre[2]])))
         elif std == "neck":
             sites.append(("head", names.index(bname), centre))
-    return _Character(joints, sites, where)
+    return DeepMimicCharacter(joints, sites, where)
 
 
-def load_deepmimic_character(path: Union[str, os.PathLike]) -> _Character:
+def load_deepmimic_character(path: Union[str, os.PathLike]) -> DeepMimicCharacter:
+    """Read a DeepMimic character JSON (``Skeleton.Joints`` and ``BodyDefs``)."""
     path = Path(path)
     return _parse_character(_read_json(path, "character file"), str(path))
 
 
-def _build_skeleton(char: _Character) -> Skeleton:
+def _build_skeleton(char: DeepMimicCharacter) -> Skeleton:
     joints, sites = char.joints, char.sites
     n_j = len(joints)
     names, types, parents, offsets, chans, axes, src, is_site = [], [], [], [], [], [], [], []
@@ -261,7 +267,8 @@ def humanoid3d_skeleton() -> Skeleton:
                     source_names=sk.source_names, is_site=sk.is_site)
 
 
-def parse_deepmimic(data, where: str = "<deepmimic>", character: Optional[_Character] = None) -> MotionClip:
+def parse_deepmimic(data, where: str = "<deepmimic>",
+                    character: Optional[DeepMimicCharacter] = None) -> MotionClip:
     """Build a clip from parsed motion JSON; see :func:`load_deepmimic`."""
     char = character if character is not None else _default_character()
     if not isinstance(data, dict) or "Frames" not in data:

@@ -517,7 +517,8 @@ class MotionClip:
 # ---------------------------------------------------------------------------
 #: Keypoints shared by every supported skeleton, for retargeting.  Each maps to a
 #: list of standard joint names tried in order.  Semantics:
-#: ``pelvis`` root; ``l_/r_hip`` hip (femur-head) joint; ``l_/r_knee``;
+#: ``pelvis`` the source's root joint (DeepMimic: at hip-joint height; CMU BVH:
+#: ~0.1 m above the hip joints); ``l_/r_hip`` hip (femur-head) joint; ``l_/r_knee``;
 #: ``l_/r_ankle``; ``l_/r_toe`` front of the foot (ball of the foot / toe joint);
 #: ``torso`` upper-trunk spine joint about 0.22 m above the pelvis; ``neck`` base of
 #: the neck; ``head`` roughly the centre of the head; ``l_/r_shoulder`` gleno-humeral

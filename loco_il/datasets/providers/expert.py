@@ -1,0 +1,641 @@
+"""`perfect` and `preference` datasets: rollouts of trained experts, cached on disk.
+
+**perfect** -- deterministic rollouts of the task's expert (`ExpertPolicy.__call__`, the Gaussian's
+mean) in a fresh env of the same body and task. Episode ``i`` starts from
+``env.seed(episode_seeds(seed, n)[i]); env.reset()``: the seeds are derived from one base seed
+(``numpy.random.SeedSequence(seed, spawn_key=(i,))``), so asking for more episodes only appends.
+The recorded actions are exactly the ones passed to ``env.step`` (clipped to [-1, 1] *before*
+recording, so a replay is exact), rewards are the task's default reward, ``absorbing`` marks a
+termination (fall or divergence) and ``last`` also marks the time limit.
+
+**preference** -- the same rollouts for several snapshots of increasing quality (at least 4),
+one set per snapshot; sets are ordered by their measured mean return, worst first, and labelled
+``level`` 0 (worst) .. K-1 (best).
+
+**Observations.** A dataset is always recorded with FULL observations: it is generated in the
+task's env without ``.pomdp`` (and without user ``hide=`` masks), and the cache file is shared by
+the MDP and POMDP versions of a task. The mask is applied when the dataset is handed out:
+``create_dataset(env)`` returns the observations ``env`` emits (``env.obs_mask``), unless
+``full_obs=True`` is passed. Experts must be trained on full observations.
+
+**Initial states.** ``Trajectories`` holds no per-episode arrays, so the simulator state at the
+start of every episode (``qpos``, ``qvel``) and the episode's reset seed are kept in
+:class:`InitStates`, saved next to the dataset as ``<name>.init_states.npz``. Replaying
+episode ``i`` from ``(qpos[i], qvel[i])`` with its recorded actions reproduces its observations
+exactly (:func:`replay_episode`; tasks with a sampled command also need the reset seed, which
+replays the command).
+
+**Cache.** ``$LOCO_IL_DATASETS`` or ``~/.cache/loco_il/datasets``::
+
+    <Body>.<task>/perfect-n<N>-seed<S>-<key>.npz                 # the dataset (Trajectories.save)
+    <Body>.<task>/perfect-n<N>-seed<S>-<key>.init_states.npz     # its InitStates
+    <Body>.<task>/preference-<snapshot>-n<N>-seed<S>-<key>.npz   # one file per preference level
+
+``<key>`` is the first 16 hex digits of the sha256 of the generation task, dataset type, policy
+checksum, number of episodes, seed, MuJoCo version and the generator version: any change gives a
+new file. Files are written atomically and validated on load; a corrupt file raises
+:class:`~loco_il.datasets.DatasetError` naming it, and ``regenerate=True`` rebuilds it.
+"""
+from __future__ import annotations
+
+import collections
+import hashlib
+import json
+import os
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable, Iterable, Mapping, Sequence
+
+import numpy as np
+
+from loco_il.datasets.trajectory import DatasetError, Trajectories
+
+#: Bump when the rollout procedure changes in a way that changes the data (invalidates caches).
+GENERATOR_VERSION = 1
+#: Where shipped experts live: ``<SHIPPED_DIR>/<Body>.<task>/expert.pt`` and ``snapshots/level_<k>.pt``.
+SHIPPED_DIR = Path(__file__).resolve().parents[2] / "experts" / "shipped"
+#: Default number of episodes of a `perfect` dataset (as iMuJoCo) and per preference level.
+DEFAULT_PERFECT_EPISODES = 100
+DEFAULT_PREFERENCE_EPISODES = 25
+MIN_PREFERENCE_LEVELS = 4
+SOURCE_PERFECT = "expert rollout"
+SOURCE_PREFERENCE = "expert snapshot rollout"
+
+#: Counters for tests and diagnostics: "generated" (datasets rolled out), "cache_hits".
+STATS: collections.Counter = collections.Counter()
+
+Policy = Callable[[np.ndarray], np.ndarray]
+
+
+class NoExpertError(DatasetError):
+    """No expert (or no preference snapshots) is available for a task."""
+
+
+# ----------------------------------------------------------------------------- paths
+
+
+def datasets_cache_dir() -> Path:
+    """``$LOCO_IL_DATASETS`` or ``~/.cache/loco_il/datasets``."""
+    given = os.environ.get("LOCO_IL_DATASETS")
+    return Path(given).expanduser() if given else Path.home() / ".cache" / "loco_il" / "datasets"
+
+
+def expert_search_path() -> list[Path]:
+    """Folders searched for ``<Body>.<task>/expert.pt``: ``$LOCO_IL_EXPERTS`` (os.pathsep-separated),
+    then the shipped folder ``loco_il/experts/shipped``."""
+    extra = [Path(p).expanduser() for p in os.environ.get("LOCO_IL_EXPERTS", "").split(os.pathsep) if p]
+    return extra + [Path(SHIPPED_DIR)]
+
+
+def task_key(env_or_id: Any) -> str:
+    """``<Body>[-<variant>].<task>`` of an env or a Task-ID (dataset type and ``.pomdp`` dropped)."""
+    if isinstance(env_or_id, str):
+        from loco_il.environments.registry import parse_task_id
+        tid = parse_task_id(env_or_id)
+        body, variant, task = tid.body, tid.variant, tid.task
+    else:
+        body, variant, task = env_or_id.body_name, getattr(env_or_id, "variant", None), env_or_id.task_name
+    return f"{body}{'-' + variant if variant else ''}.{task}"
+
+
+def available_experts() -> list[str]:
+    """Task keys (``<Body>.<task>``) that have an ``expert.pt`` in the search path."""
+    found = set()
+    for root in expert_search_path():
+        if root.is_dir():
+            found.update(p.parent.name for p in root.glob("*/expert.pt"))
+    return sorted(found)
+
+
+def available_snapshot_sets() -> list[str]:
+    """Task keys that have preference snapshots (``snapshots/level_<k>.pt``)."""
+    found = set()
+    for root in expert_search_path():
+        if root.is_dir():
+            found.update(p.parent.parent.name for p in root.glob("*/snapshots/level_*.pt"))
+    return sorted(found)
+
+
+def _train_hint(key: str) -> str:
+    return (f"train one with `python -m loco_il.experts train task={key}` and copy its best.pt to "
+            f"{Path(SHIPPED_DIR) / key / 'expert.pt'} (or put it under a folder listed in $LOCO_IL_EXPERTS), "
+            f"or pass expert_path=<file.pt>")
+
+
+def find_expert(key: str) -> Path:
+    """The expert file of a task key; :class:`NoExpertError` naming the tasks that have one."""
+    for root in expert_search_path():
+        path = root / key / "expert.pt"
+        if path.is_file():
+            return path
+    have = available_experts()
+    raise NoExpertError(
+        f"no expert for {key}: looked for {key}/expert.pt in {', '.join(str(r) for r in expert_search_path())}. "
+        f"Tasks with an expert: {', '.join(have) if have else '(none installed)'}. To get one, {_train_hint(key)}.")
+
+
+def find_snapshots(key: str) -> list[Path]:
+    """``snapshots/level_<k>.pt`` of a task key, sorted by k (from the first folder that has any)."""
+    for root in expert_search_path():
+        folder = root / key / "snapshots"
+        files = sorted(folder.glob("level_*.pt"), key=_level_number) if folder.is_dir() else []
+        if files:
+            return files
+    have = available_snapshot_sets()
+    raise NoExpertError(
+        f"no preference snapshots for {key}: looked for {key}/snapshots/level_<k>.pt in "
+        f"{', '.join(str(r) for r in expert_search_path())}. Tasks with snapshots: "
+        f"{', '.join(have) if have else '(none installed)'}. Train an expert with "
+        f"`python -m loco_il.experts train task={key}` (it writes snapshots/step_*.pt), copy "
+        f">= {MIN_PREFERENCE_LEVELS} snapshots of increasing quality to {Path(SHIPPED_DIR) / key / 'snapshots'}"
+        f"/level_<k>.pt, or pass snapshots=[file.pt, ...]")
+
+
+def _level_number(path: Path) -> tuple[int, str]:
+    stem = path.stem.split("_", 1)[-1]
+    return (int(stem), path.name) if stem.isdigit() else (sys.maxsize, path.name)
+
+
+# ----------------------------------------------------------------------------- policies
+
+
+def _policy_checksum(policy: Any) -> str:
+    fn = getattr(policy, "checksum", None)
+    if not callable(fn):
+        raise TypeError(f"an expert must provide checksum() (used in the dataset cache key); "
+                        f"{type(policy).__name__} does not")
+    value = fn()
+    if not isinstance(value, str) or not value:
+        raise TypeError(f"{type(policy).__name__}.checksum() must return a non-empty str, got {value!r}")
+    return value
+
+
+def load_policy(expert: Any = None, expert_path: str | os.PathLike | None = None, *, key: str) -> tuple[Any, str]:
+    """(policy, description): an expert object as given, a file loaded with `load_expert`, or the
+    task's installed expert."""
+    if expert is not None and expert_path is not None:
+        raise ValueError("pass either expert= or expert_path=, not both")
+    if expert is not None:
+        _policy_checksum(expert)
+        return expert, f"<{type(expert).__name__} object>"
+    path = Path(expert_path) if expert_path is not None else find_expert(key)
+    if not path.is_file():
+        raise NoExpertError(f"expert file {path} does not exist")
+    from loco_il.experts.policy import load_expert
+    try:
+        policy = load_expert(path)
+    except Exception as exc:  # torch/pickle/format errors: name the file
+        raise NoExpertError(f"cannot load expert file {path}: {type(exc).__name__}: {exc}") from exc
+    return policy, str(path)
+
+
+def _check_policy(policy: Any, key: str, obs_dim: int, act_dim: int, where: str) -> None:
+    meta = getattr(policy, "metadata", None) or {}
+    p_obs, p_act = getattr(policy, "obs_dim", None), getattr(policy, "act_dim", None)
+    if p_obs is not None and int(p_obs) != obs_dim:
+        raise DatasetError(f"expert {where} expects observations of size {p_obs}, but {key} has {obs_dim} full "
+                           f"observation entries (experts must be trained on full observations, without .pomdp)")
+    if p_act is not None and int(p_act) != act_dim:
+        raise DatasetError(f"expert {where} has {p_act} actions, but {key} has {act_dim}")
+    tid = meta.get("task_id")
+    if isinstance(tid, str) and tid:
+        try:
+            other = task_key(tid)
+        except Exception:
+            other = tid
+        if other != key:
+            raise DatasetError(f"expert {where} was trained on {tid!r}, not on {key}")
+
+
+def _expert_meta(policy: Any) -> dict[str, Any]:
+    meta = getattr(policy, "metadata", None) or {}
+    keep = ("task_id", "training_steps", "eval_return", "eval_return_std", "commit", "algorithm", "created")
+    return {k: meta[k] for k in keep if k in meta}
+
+
+# ----------------------------------------------------------------------------- init states
+
+
+@dataclass
+class InitStates:
+    """Simulator state at the start of every episode of a dataset, aligned with its episodes.
+
+    ``qpos`` (E, nq), ``qvel`` (E, nv), ``seeds`` (E,) int64: the seed passed to ``env.seed``
+    before the ``reset`` that started the episode (-1 if unknown).
+    """
+
+    qpos: np.ndarray
+    qvel: np.ndarray
+    seeds: np.ndarray
+
+    def __post_init__(self) -> None:
+        self.qpos = np.asarray(self.qpos, dtype=np.float64)
+        self.qvel = np.asarray(self.qvel, dtype=np.float64)
+        self.seeds = np.asarray(self.seeds, dtype=np.int64)
+        if self.qpos.ndim != 2 or self.qvel.ndim != 2 or self.seeds.ndim != 1 \
+                or not (len(self.qpos) == len(self.qvel) == len(self.seeds)):
+            raise DatasetError(f"InitStates: qpos (E, nq), qvel (E, nv) and seeds (E,) must agree; got "
+                               f"{self.qpos.shape}, {self.qvel.shape}, {self.seeds.shape}")
+
+    def __len__(self) -> int:
+        return len(self.seeds)
+
+    def select(self, indices: Iterable[int]) -> "InitStates":
+        idx = np.asarray(list(indices), dtype=np.int64)
+        return InitStates(self.qpos[idx], self.qvel[idx], self.seeds[idx])
+
+    @classmethod
+    def concatenate(cls, parts: Sequence["InitStates"]) -> "InitStates":
+        return cls(np.concatenate([p.qpos for p in parts]), np.concatenate([p.qvel for p in parts]),
+                   np.concatenate([p.seeds for p in parts]))
+
+    def save(self, path: str | os.PathLike) -> Path:
+        from loco_il.utils.atomic import atomic_open
+        with atomic_open(path) as fh:
+            np.savez(fh, format_version=np.asarray(1), qpos=self.qpos, qvel=self.qvel, seeds=self.seeds)
+        return Path(path)
+
+    @classmethod
+    def load(cls, path: str | os.PathLike, regenerate_hint: str | None = None,
+             n_episodes: int | None = None, nq: int | None = None, nv: int | None = None) -> "InitStates":
+        path = Path(path)
+        hint = regenerate_hint or "delete it and call env.create_dataset() again to regenerate it"
+
+        def fail(reason: str) -> DatasetError:
+            return DatasetError(f"cannot load initial-state file '{path}': {reason}. To fix this, {hint}.")
+
+        if not path.is_file():
+            raise fail("the file does not exist")
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                out = cls(z["qpos"], z["qvel"], z["seeds"])
+        except DatasetError as exc:
+            raise fail(str(exc)) from None
+        except Exception as exc:
+            raise fail(f"the file is truncated or corrupt ({type(exc).__name__}: {exc})") from exc
+        if n_episodes is not None and len(out) != n_episodes:
+            raise fail(f"it has {len(out)} episodes, the dataset has {n_episodes}")
+        if (nq is not None and out.qpos.shape[1] != nq) or (nv is not None and out.qvel.shape[1] != nv):
+            raise fail(f"its states have nq={out.qpos.shape[1]}, nv={out.qvel.shape[1]}; the model has nq={nq}, nv={nv}")
+        if not (np.isfinite(out.qpos).all() and np.isfinite(out.qvel).all()):
+            raise fail("it contains non-finite values")
+        return out
+
+
+def init_states_path(dataset_path: str | os.PathLike) -> Path:
+    """The sidecar file of a dataset file: ``x.npz`` -> ``x.init_states.npz``."""
+    p = Path(dataset_path)
+    return p.with_name(p.name[:-4] + ".init_states.npz" if p.name.endswith(".npz") else p.name + ".init_states.npz")
+
+
+# ----------------------------------------------------------------------------- rollouts
+
+
+def episode_seeds(seed: int, n: int) -> np.ndarray:
+    """Reset seed of episode i: ``SeedSequence(seed, spawn_key=(i,))`` -> uint32; prefix-stable in n."""
+    return np.array([np.random.SeedSequence(int(seed), spawn_key=(i,)).generate_state(1, np.uint32)[0]
+                     for i in range(int(n))], dtype=np.int64)
+
+
+def _log_default(msg: str) -> None:
+    print(msg, file=sys.stderr, flush=True)
+
+
+def rollout(env: Any, policy: Policy, seeds: Sequence[int], *, info: Mapping[str, Any] | None = None,
+            log: Callable[[str], None] | None = None, label: str = "") -> tuple[Trajectories, InitStates]:
+    """Roll out ``policy`` deterministically, one episode per seed, and record everything.
+
+    ``env`` should be a full-observation LocoEnv. The returned dataset's info is ``info`` plus
+    ``episode_returns`` and ``expert_return_mean`` / ``expert_return_std``.
+    """
+    horizon = int(env.info.horizon)
+    nu = int(env.model.nu)
+    obs_l, nobs_l, act_l, rew_l, abs_l, last_l = [], [], [], [], [], []
+    qpos0, qvel0, returns, lengths = [], [], [], []
+    n = len(seeds)
+    every = max(1, n // 10)
+    t0 = time.perf_counter()
+    for i, s in enumerate(seeds):
+        env.seed(int(s))
+        obs = env.reset()
+        q, v = env.get_sim_state()
+        qpos0.append(q)
+        qvel0.append(v)
+        ep_obs, ep_act, ep_rew, ep_next = [], [], [], []
+        absorbing = False
+        for t in range(horizon):
+            a = np.asarray(policy(obs), dtype=np.float64).reshape(-1)
+            if a.shape != (nu,):
+                raise ValueError(f"the expert returned an action of shape {a.shape}, the env needs ({nu},)")
+            if not np.isfinite(a).all():
+                raise ValueError(f"the expert returned a non-finite action at step {t} of episode {i}: {a}")
+            a = np.clip(a, -1.0, 1.0)   # what env.step applies anyway: record exactly what was executed
+            nobs, r, absorbing, _ = env.step(a)
+            ep_obs.append(obs)
+            ep_act.append(a)
+            ep_rew.append(r)
+            ep_next.append(nobs)
+            obs = nobs
+            if absorbing:
+                break
+        k = len(ep_obs)
+        obs_l += ep_obs
+        nobs_l += ep_next
+        act_l += ep_act
+        rew_l += ep_rew
+        abs_l += [False] * (k - 1) + [bool(absorbing)]
+        last_l += [False] * (k - 1) + [True]
+        returns.append(float(np.sum(ep_rew)))
+        lengths.append(k)
+        if log is not None and ((i + 1) % every == 0 or i + 1 == n):
+            log(f"[loco_il.datasets] {label}: episode {i + 1}/{n}, return {returns[-1]:.2f}, length {k}, "
+                f"mean return {np.mean(returns):.2f}, {time.perf_counter() - t0:.1f}s")
+    info = dict(info or {})
+    info.update(episode_returns=returns, expert_return_mean=float(np.mean(returns)),
+                expert_return_std=float(np.std(returns)), n_episodes=n, mean_episode_length=float(np.mean(lengths)))
+    data = Trajectories(np.asarray(obs_l, dtype=np.float64), np.asarray(nobs_l, dtype=np.float64),
+                        np.asarray(act_l, dtype=np.float64), np.asarray(rew_l, dtype=np.float64),
+                        np.asarray(abs_l, dtype=bool), np.asarray(last_l, dtype=bool), info)
+    return data, InitStates(np.asarray(qpos0), np.asarray(qvel0), np.asarray(seeds, dtype=np.int64))
+
+
+def replay_episode(env: Any, qpos: np.ndarray, qvel: np.ndarray, actions: np.ndarray,
+                   seed: int | None = None) -> dict[str, np.ndarray]:
+    """Replay recorded actions from a stored initial state; returns obs, next_obs, rewards, absorbing.
+
+    With ``seed`` the env is first reset with that seed (reproducing a sampled task command and the
+    env's random stream); the simulator is then put in ``(qpos, qvel)``. ``env`` must emit the same
+    observations as the generation env (no ``.pomdp``).
+    """
+    if seed is not None and int(seed) >= 0:
+        env.seed(int(seed))
+    env.reset()
+    obs = env.set_sim_state(np.asarray(qpos, dtype=np.float64), np.asarray(qvel, dtype=np.float64))
+    out_obs, out_next, out_rew, out_abs = [], [], [], []
+    for a in np.asarray(actions):
+        nobs, r, absorbing, _ = env.step(a)
+        out_obs.append(obs)
+        out_next.append(nobs)
+        out_rew.append(r)
+        out_abs.append(absorbing)
+        obs = nobs
+        if absorbing:
+            break
+    return {"obs": np.asarray(out_obs), "next_obs": np.asarray(out_next), "rewards": np.asarray(out_rew),
+            "absorbing": np.asarray(out_abs, dtype=bool)}
+
+
+# ----------------------------------------------------------------------------- cache
+
+
+def generation_env(env: Any, key: str) -> Any:
+    """A fresh full-observation env of ``key`` (no .pomdp, no hide=, default reward) for rollouts."""
+    from loco_il.environments.registry import make
+    return make(f"{key}.{env.dataset_type}")
+
+
+def cache_key(fields: Mapping[str, Any]) -> str:
+    return hashlib.sha256(json.dumps(dict(fields), sort_keys=True).encode()).hexdigest()[:16]
+
+
+def _safe(name: str) -> str:
+    return "".join(c if c.isalnum() or c in "-_." else "_" for c in name)
+
+
+def _regen_hint(path: Path) -> str:
+    return (f"call create_dataset(env, regenerate=True) to rebuild it (or delete {path} and its "
+            f".init_states.npz and call env.create_dataset() again)")
+
+
+def cached_rollouts(gen_env: Any, policy: Any, *, key: str, dataset_type: str, name: str, n_episodes: int,
+                    seed: int, info: Mapping[str, Any], regenerate: bool = False,
+                    log: Callable[[str], None] | None = _log_default) -> tuple[Trajectories, InitStates, Path]:
+    """Load the rollouts of ``policy`` from the cache, or generate and save them (atomically)."""
+    import mujoco
+    checksum = _policy_checksum(policy)
+    fields = {"generator": GENERATOR_VERSION, "task": key, "dataset_type": dataset_type, "policy": checksum,
+              "n_episodes": int(n_episodes), "seed": int(seed), "mujoco": mujoco.__version__}
+    hkey = cache_key(fields)
+    path = datasets_cache_dir() / _safe(key) / f"{_safe(name)}-n{int(n_episodes)}-seed{int(seed)}-{hkey}.npz"
+    side = init_states_path(path)
+    nq, nv = int(gen_env.model.nq), int(gen_env.model.nv)
+    if not regenerate and path.exists():
+        hint = _regen_hint(path)
+        data = Trajectories.load(path, regenerate_hint=hint,
+                                 expect={"cache_key": hkey, "policy_checksum": checksum,
+                                         "obs_names": list(gen_env.full_obs_spec.names),
+                                         "act_dim": int(gen_env.model.nu)})
+        init = InitStates.load(side, regenerate_hint=hint, n_episodes=data.n_trajectories, nq=nq, nv=nv)
+        STATS["cache_hits"] += 1
+        return data, init, path
+    if log is not None:
+        log(f"[loco_il.datasets] generating {name} dataset of {key}: {n_episodes} episodes, seed {seed} -> {path}")
+    full_info = {
+        "task_id": f"{key}.{dataset_type}", "dataset_type": dataset_type, "obs_names": list(gen_env.full_obs_spec.names),
+        "simulator": f"mujoco {mujoco.__version__}", "seed": int(seed), "policy_checksum": checksum,
+        "cache_key": hkey, "cache_fields": fields, "generator": f"loco_il.datasets.providers.expert v{GENERATOR_VERSION}",
+        "reward": "task default", "action_space": "[-1, 1] (clipped before recording)",
+    }
+    full_info.update(info)
+    data, init = rollout(gen_env, policy, episode_seeds(seed, n_episodes), info=full_info, log=log, label=name)
+    init.save(side)          # sidecar first: a dataset file on disk always has its sidecar
+    data.save(path)
+    STATS["generated"] += 1
+    return data, init, path
+
+
+# ----------------------------------------------------------------------------- providers
+
+
+def perfect_provider(env: Any, *, n_episodes: int | None = None, generation_seed: int = 0, expert: Any = None,
+                     expert_path: str | os.PathLike | None = None, regenerate: bool = False,
+                     verbose: bool = True, **unused: Any) -> tuple[Trajectories, InitStates]:
+    """The `perfect` dataset of ``env``'s task (full observations) and its initial states."""
+    _reject_unused(unused, "perfect")
+    key = _expert_key(env, expert, expert_path)
+    policy, where = load_policy(expert, expert_path, key=key)
+    gen_env = generation_env(env, key)
+    try:
+        _check_policy(policy, key, gen_env.full_obs_spec.dim, int(gen_env.model.nu), where)
+        n = DEFAULT_PERFECT_EPISODES if n_episodes is None else int(n_episodes)
+        if n < 1:
+            raise ValueError(f"n_episodes must be >= 1, got {n}")
+        info = {"source": SOURCE_PERFECT, "expert": where, "expert_metadata": _expert_meta(policy)}
+        data, init, _ = cached_rollouts(gen_env, policy, key=key, dataset_type="perfect", name="perfect",
+                                        n_episodes=n, seed=generation_seed, info=info, regenerate=regenerate,
+                                        log=_log_default if verbose else None)
+    finally:
+        gen_env.stop()
+    return data, init
+
+
+def _expert_key(env: Any, expert: Any, expert_path: Any) -> str:
+    """The task key whose expert is used: the variant's own if installed, else the base body's."""
+    key = task_key(env)
+    if getattr(env, "variant", None) and expert is None and expert_path is None and key not in available_experts():
+        return f"{env.body_name}.{env.task_name}"
+    return key
+
+
+def _reject_unused(unused: Mapping[str, Any], kind: str) -> None:
+    if unused:
+        raise TypeError(f"unexpected argument(s) for a {kind} dataset: {', '.join(sorted(unused))}")
+
+
+def create_preference_sets(env: Any, *, n_episodes: int | None = None, generation_seed: int = 0,
+                           snapshots: Sequence[Any] | None = None, regenerate: bool = False,
+                           verbose: bool = True, min_levels: int = MIN_PREFERENCE_LEVELS,
+                           return_init_states: bool = False) -> list[Trajectories] | tuple[list[Trajectories], list[InitStates]]:
+    """One dataset per snapshot, ordered by mean return from worst to best (``info["level"]`` 0..K-1).
+
+    ``snapshots``: expert files or expert objects (default: the task's installed
+    ``snapshots/level_<k>.pt``). Every set has ``n_episodes`` episodes (default 25) from the same
+    reset seeds, and its info holds ``level``, ``snapshot``, ``mean_return`` and the full ``levels`` table.
+    """
+    if isinstance(env, str):
+        from loco_il.environments.registry import make
+        env = make(env)
+    key = task_key(env)
+    if snapshots is None:
+        if getattr(env, "variant", None) and key not in available_snapshot_sets():
+            key = f"{env.body_name}.{env.task_name}"
+        snapshots = find_snapshots(key)
+    snapshots = list(snapshots)
+    if len(snapshots) < min_levels:
+        raise DatasetError(f"a preference dataset needs at least {min_levels} snapshots of different quality; "
+                           f"got {len(snapshots)} for {key}")
+    n = DEFAULT_PREFERENCE_EPISODES if n_episodes is None else int(n_episodes)
+    if n < 1:
+        raise ValueError(f"n_episodes must be >= 1, got {n}")
+    gen_env = generation_env(env, key)
+    sets = []
+    try:
+        for k, snap in enumerate(snapshots):
+            if isinstance(snap, (str, os.PathLike)):
+                policy, where = load_policy(expert_path=snap, key=key)
+                name = f"preference-{Path(snap).stem}"
+            else:
+                policy, where = load_policy(expert=snap, key=key)
+                name = f"preference-snapshot{k}"
+            _check_policy(policy, key, gen_env.full_obs_spec.dim, int(gen_env.model.nu), where)
+            info = {"source": SOURCE_PREFERENCE, "snapshot": where, "snapshot_index": k,
+                    "expert_metadata": _expert_meta(policy)}
+            data, init, _ = cached_rollouts(gen_env, policy, key=key, dataset_type="preference", name=name,
+                                            n_episodes=n, seed=generation_seed, info=info, regenerate=regenerate,
+                                            log=_log_default if verbose else None)
+            sets.append((data, init, where))
+    finally:
+        gen_env.stop()
+    sets.sort(key=lambda s: s[0].info["expert_return_mean"])   # stable: ties keep snapshot order
+    levels = [{"level": lvl, "snapshot": where, "mean_return": d.info["expert_return_mean"],
+               "std_return": d.info["expert_return_std"], "policy_checksum": d.info["policy_checksum"]}
+              for lvl, (d, _, where) in enumerate(sets)]
+    out, inits = [], []
+    for lvl, (d, init, where) in enumerate(sets):
+        info = dict(d.info)
+        info.update(level=lvl, mean_return=d.info["expert_return_mean"], levels=levels,
+                    episode_level=[lvl] * d.n_trajectories)
+        out.append(d.replace(info=info))
+        inits.append(init)
+    return (out, inits) if return_init_states else out
+
+
+def preference_provider(env: Any, *, n_episodes: int | None = None, generation_seed: int = 0,
+                        snapshots: Sequence[Any] | None = None, regenerate: bool = False,
+                        verbose: bool = True, expert: Any = None, expert_path: Any = None,
+                        **unused: Any) -> tuple[Trajectories, InitStates]:
+    """All preference levels concatenated (worst first), with ``info["episode_level"]`` per episode."""
+    _reject_unused(unused, "preference")
+    if expert is not None or expert_path is not None:
+        raise TypeError("a preference dataset is built from several snapshots: pass snapshots=[...] "
+                        "(files or expert objects), not expert=/expert_path=")
+    sets, inits = create_preference_sets(env, n_episodes=n_episodes, generation_seed=generation_seed,
+                                         snapshots=snapshots, regenerate=regenerate, verbose=verbose,
+                                         return_init_states=True)
+    info = dict(sets[0].info)
+    for k in ("level", "mean_return", "snapshot", "snapshot_index", "expert_metadata", "episode_returns",
+              "expert_return_mean", "expert_return_std", "mean_episode_length", "cache_key", "cache_fields"):
+        info.pop(k, None)
+    info.update(
+        task_id=sets[0].info["task_id"],
+        dataset_type="preference", source=SOURCE_PREFERENCE,
+        policy_checksum=hashlib.sha256("".join(s.info["policy_checksum"] for s in sets).encode()).hexdigest(),
+        episode_level=[lvl for s in sets for lvl in s.info["episode_level"]],
+        episode_returns=[r for s in sets for r in s.info["episode_returns"]],
+        n_episodes=sum(s.n_trajectories for s in sets), n_levels=len(sets))
+    return Trajectories.concatenate(sets, info=info), InitStates.concatenate(inits)
+
+
+# ----------------------------------------------------------------------------- labels and init states
+
+
+def episode_levels(trajs: Trajectories) -> np.ndarray:
+    """Preference level (0 = worst) of every episode of a preference dataset (also after ``split``)."""
+    levels = trajs.info.get("episode_level")
+    if levels is None:
+        raise DatasetError("this dataset has no preference levels (info['episode_level']); "
+                           "it is not a preference dataset")
+    levels = np.asarray(levels, dtype=np.int64)
+    if len(levels) == trajs.n_trajectories:
+        return levels
+    chosen = (trajs.info.get("split") or {}).get("episodes")
+    if chosen is not None and len(chosen) == trajs.n_trajectories:
+        return levels[np.asarray(chosen, dtype=np.int64)]
+    raise DatasetError(f"info['episode_level'] has {len(levels)} entries for {trajs.n_trajectories} episodes")
+
+
+def transition_levels(trajs: Trajectories) -> np.ndarray:
+    """Preference level of every transition (N,)."""
+    starts = np.concatenate([[0], np.flatnonzero(trajs.last)[:-1] + 1])
+    stops = np.flatnonzero(trajs.last) + 1
+    return np.repeat(episode_levels(trajs), stops - starts)
+
+
+def dataset_init_state_sampler(init_states: InitStates | None = None, *, env: Any = None,
+                               trajs: Trajectories | None = None) -> Callable[[np.random.Generator],
+                                                                                tuple[np.ndarray, np.ndarray]]:
+    """An ``init_state_sampler`` for ``LocoEnv`` that starts episodes from dataset states.
+
+    * ``dataset_init_state_sampler(init_states)``: a uniformly drawn episode's initial state.
+    * ``dataset_init_state_sampler(env=env, trajs=full_obs_dataset)``: any state of the dataset
+      (as LocoMuJoCo does), rebuilt from a full observation: positions and velocities are the
+      observation's entries; the root's horizontal position (not observed) is the env's default.
+
+    Use: ``env.init_state_sampler = dataset_init_state_sampler(...)``.
+    """
+    if init_states is not None:
+        qpos, qvel = init_states.qpos.copy(), init_states.qvel.copy()
+    else:
+        if env is None or trajs is None:
+            raise ValueError("pass init_states, or env= and trajs= (a full-observation dataset)")
+        spec = env.full_obs_spec
+        if trajs.obs_dim != spec.dim:
+            raise DatasetError(f"the dataset has {trajs.obs_dim} observation entries; rebuilding states needs the "
+                               f"full observation ({spec.dim}); create it with full_obs=True")
+        layout = env._layout
+        npos, nvel = len(layout.qpos_idx), len(layout.qvel_idx)
+        states = np.concatenate([trajs.obs, trajs.next_obs[trajs.last]])
+        qpos = np.tile(env._init_qpos, (len(states), 1))
+        qpos[:, layout.qpos_idx] = states[:, :npos]
+        qvel = np.zeros((len(states), env.model.nv))
+        qvel[:, layout.qvel_idx] = states[:, npos:npos + nvel]
+    if len(qpos) == 0:
+        raise DatasetError("no states to sample from")
+
+    def sample(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+        i = int(rng.integers(len(qpos)))
+        return qpos[i].copy(), qvel[i].copy()
+
+    return sample
+
+
+__all__ = [
+    "GENERATOR_VERSION", "SHIPPED_DIR", "DEFAULT_PERFECT_EPISODES", "DEFAULT_PREFERENCE_EPISODES",
+    "MIN_PREFERENCE_LEVELS", "STATS", "NoExpertError", "InitStates", "datasets_cache_dir", "expert_search_path",
+    "task_key", "available_experts", "available_snapshot_sets", "find_expert", "find_snapshots", "load_policy",
+    "episode_seeds", "rollout", "replay_episode", "generation_env", "cached_rollouts", "init_states_path",
+    "perfect_provider", "create_preference_sets", "preference_provider", "episode_levels", "transition_levels",
+    "dataset_init_state_sampler",
+]

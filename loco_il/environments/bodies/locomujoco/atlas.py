@@ -1,0 +1,55 @@
+"""Atlas (Boston Dynamics, model from drcsim via Roboti) as LocoMuJoCo 0.4.1 configures it by default.
+
+Facts from LocoMuJoCo 0.4.1 `loco_mujoco/environments/humanoids/atlas.py`:
+* `Atlas.__init__(disable_arms=True, disable_back_joint=True)`: `_get_xml_modifications` removes the
+  12 arm joints (l/r_arm_shz, shx, ely, elx, wry, wrx) and the 3 back joints (back_bkz, bky, bkx) with
+  their `<joint>_actuator` motors -> 16 joints left, observation 30 (14 positions + 16 velocities),
+  10 actions. Tasks walk (1.25 m/s) and carry; carry is not provided here.
+* `_has_fallen` (atlas.py lines 381-384): pelvis_ty outside [-0.3, 0.1], pelvis_tilt outside
+  [-pi/4.5, pi/12], pelvis_list outside [-pi/12, pi/8], pelvis_rotation outside [-pi/10, pi/10]
+  (the back bounds apply only with the back joint enabled). The pelvis body sits at z = 0.94 in
+  atlas.xml, so the height band is [0.64, 1.04] m on the pelvis world z (see `common.py`).
+
+Start pose: qpos0 with pelvis_ty lowered so the foot boxes rest on the floor (measured with
+`mujoco.mj_geomDistance`: the foot boxes are 0.0261 m under the floor at qpos0... see STAND_POSE).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from loco_il.environments.assets import LICENCES
+from loco_il.environments.body import Body
+from loco_il.environments.bodies.locomujoco.common import (CONTROL_DT, DATASETS, STAND_KEY, TIMESTEP, RootJointFall,
+                                                           add_keyframe, humanoid_tasks, loader, slide_to_height)
+from loco_il.environments.registry import register_body
+
+MODEL = "atlas/atlas.xml"
+PELVIS_Z = 0.94     # atlas.xml: <body name="pelvis" pos="0 0 0.94">
+
+ARM_JOINTS = ("l_arm_shz", "l_arm_shx", "l_arm_ely", "l_arm_elx", "l_arm_wry", "l_arm_wrx",
+              "r_arm_shz", "r_arm_shx", "r_arm_ely", "r_arm_elx", "r_arm_wry", "r_arm_wrx")
+BACK_JOINTS = ("back_bkz", "back_bky", "back_bkx")
+REMOVED_JOINTS = ARM_JOINTS + BACK_JOINTS
+REMOVED_ACTUATORS = tuple(f"{j}_actuator" for j in REMOVED_JOINTS)
+
+TERMINATION = RootJointFall(
+    height_range=slide_to_height(PELVIS_Z, (-0.3, 0.1)),
+    joint_bounds=(("pelvis_tilt", -np.pi / 4.5, np.pi / 12),
+                  ("pelvis_list", -np.pi / 12, np.pi / 8),
+                  ("pelvis_rotation", -np.pi / 10, np.pi / 10)))
+
+STAND_POSE = {"pelvis_ty": 0.0}
+
+
+def _edit(spec) -> None:
+    add_keyframe(spec, STAND_POSE, STAND_KEY)
+
+
+ATLAS = Body(
+    name="Atlas", load_spec=loader(MODEL), tasks=humanoid_tasks(TERMINATION, run=False, robot="Atlas"),
+    default_task="walk", datasets=DATASETS, default_dataset="real", family="humanoid",
+    joints_to_remove=REMOVED_JOINTS, actuators_to_remove=REMOVED_ACTUATORS,
+    control_dt=CONTROL_DT, timestep=TIMESTEP, init_keyframe=STAND_KEY, licence=LICENCES["locomujoco/atlas"],
+    source=f"loco-mujoco 0.4.1 environments/data/{MODEL}", spec_edit=_edit, pomdp_hide=("velocities",))
+
+register_body(ATLAS)

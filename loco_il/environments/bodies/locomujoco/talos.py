@@ -1,0 +1,61 @@
+"""Talos (PAL Robotics) as LocoMuJoCo 0.4.1 configures it by default.
+
+Facts from LocoMuJoCo 0.4.1 `loco_mujoco/environments/humanoids/talos.py`:
+* `Talos.__init__(disable_arms=True, disable_back_joint=False)`: `_get_xml_modifications` removes the
+  12 arm joints (l/r_arm_shz, shx, ely, elx, wry, wrx) and their `<joint>_actuator` motors; the back
+  joints back_bkz and back_bky stay -> 18 joints, observation 34 (16 positions + 18 velocities),
+  12 actions. With the arms disabled (and no weight) `_reorient_arms` sets the quaternions of
+  arm_right_4_link and arm_left_4_link to (1, 0, -0.25, 0) so the elbows clear the hips.
+  Tasks walk (1.25 m/s) and carry; carry is not provided here.
+* `_has_fallen` (talos.py lines 371-382): pelvis_ty outside [-0.3, 0.1], pelvis_tilt outside
+  [-pi/4.5, pi/12], pelvis_list outside [-pi/12, pi/8], pelvis_rotation outside [-pi/10, pi/10],
+  back_bky outside [-pi/4, pi/10], back_bkz outside [-pi/10, pi/10]. The pelvis body sits at
+  z = 1.085 in talos.xml, so the height band is [0.785, 1.185] m on the pelvis world z.
+* The model file's timestep is 0.002; LocoMuJoCo (and we) simulate at 0.001.
+
+Licence: CC BY-NC-ND 4.0 - the model is fetched at run time from the LocoMuJoCo sdist, never shipped.
+Start pose: see STAND_POSE (feet resting on the floor, measured with `mujoco.mj_geomDistance`).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from loco_il.environments.assets import LICENCES
+from loco_il.environments.body import Body
+from loco_il.environments.bodies.locomujoco.common import (CONTROL_DT, DATASETS, STAND_KEY, TIMESTEP, RootJointFall,
+                                                           add_keyframe, humanoid_tasks, loader, set_body_quats,
+                                                           slide_to_height)
+from loco_il.environments.registry import register_body
+
+MODEL = "talos/talos.xml"
+PELVIS_Z = 1.085    # talos.xml: <body name="pelvis" pos="0 0 1.085">
+
+REMOVED_JOINTS = ("l_arm_shz", "l_arm_shx", "l_arm_ely", "l_arm_elx", "l_arm_wry", "l_arm_wrx",
+                  "r_arm_shz", "r_arm_shx", "r_arm_ely", "r_arm_elx", "r_arm_wry", "r_arm_wrx")
+REMOVED_ACTUATORS = tuple(f"{j}_actuator" for j in REMOVED_JOINTS)
+ARM_QUATS = {"arm_right_4_link": (1.0, 0.0, -0.25, 0.0), "arm_left_4_link": (1.0, 0.0, -0.25, 0.0)}
+
+TERMINATION = RootJointFall(
+    height_range=slide_to_height(PELVIS_Z, (-0.3, 0.1)),
+    joint_bounds=(("pelvis_tilt", -np.pi / 4.5, np.pi / 12),
+                  ("pelvis_list", -np.pi / 12, np.pi / 8),
+                  ("pelvis_rotation", -np.pi / 10, np.pi / 10),
+                  ("back_bky", -np.pi / 4, np.pi / 10),
+                  ("back_bkz", -np.pi / 10, np.pi / 10)))
+
+STAND_POSE = {"pelvis_ty": 0.0}
+
+
+def _edit(spec) -> None:
+    set_body_quats(spec, ARM_QUATS)
+    add_keyframe(spec, STAND_POSE, STAND_KEY)
+
+
+TALOS = Body(
+    name="Talos", load_spec=loader(MODEL), tasks=humanoid_tasks(TERMINATION, run=False, robot="Talos"),
+    default_task="walk", datasets=DATASETS, default_dataset="real", family="humanoid",
+    joints_to_remove=REMOVED_JOINTS, actuators_to_remove=REMOVED_ACTUATORS,
+    control_dt=CONTROL_DT, timestep=TIMESTEP, init_keyframe=STAND_KEY, licence=LICENCES["locomujoco/talos"],
+    source=f"loco-mujoco 0.4.1 environments/data/{MODEL}", spec_edit=_edit, pomdp_hide=("velocities",))
+
+register_body(TALOS)

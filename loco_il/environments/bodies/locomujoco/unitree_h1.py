@@ -1,0 +1,60 @@
+"""Unitree H1 as LocoMuJoCo 0.4.1 configures it by default.
+
+Facts from LocoMuJoCo 0.4.1 `loco_mujoco/environments/humanoids/unitreeH1.py`:
+* `UnitreeH1.__init__(disable_arms=True, disable_back_joint=False)`: `_get_xml_modifications` removes
+  the 8 arm joints (l/r_arm_shy, shx, shz, left/right_elbow) and their `<joint>_actuator` motors; the
+  torso joint back_bkz stays -> 17 joints, observation 32 (15 positions + 17 velocities), 11 actions.
+  With the arms disabled (and no weight) `_reorient_arms` sets body quaternions
+  left_shoulder_pitch_link (1, 0.25, 0.1, 0), right_shoulder_pitch_link (1, -0.25, 0.1, 0),
+  left_elbow_link and right_elbow_link (1, 0, 0.25, 0). Tasks walk (1.25 m/s), run (2.5 m/s), carry
+  (not provided here).
+* `_has_fallen` (unitreeH1.py lines 362-365): pelvis_ty outside [-0.3, 0.1], pelvis_tilt outside
+  [-pi/4.5, pi/12], pelvis_list outside [-pi/12, pi/8], pelvis_rotation outside [-pi/8, pi/8].
+  The pelvis body sits at z = 1.045 in h1.xml, so the height band is [0.745, 1.145] m on the pelvis
+  world z.
+* The model file's timestep is 0.002; LocoMuJoCo (and we) simulate at 0.001.
+
+Start pose: see STAND_POSE (feet resting on the floor, measured with `mujoco.mj_geomDistance`).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from loco_il.environments.assets import LICENCES
+from loco_il.environments.body import Body
+from loco_il.environments.bodies.locomujoco.common import (CONTROL_DT, DATASETS, STAND_KEY, TIMESTEP, RootJointFall,
+                                                           add_keyframe, humanoid_tasks, loader, set_body_quats,
+                                                           slide_to_height)
+from loco_il.environments.registry import register_body
+
+MODEL = "unitree_h1/h1.xml"
+PELVIS_Z = 1.045    # h1.xml: <body name="pelvis" pos="0 0 1.045">
+
+REMOVED_JOINTS = ("l_arm_shy", "l_arm_shx", "l_arm_shz", "left_elbow",
+                  "r_arm_shy", "r_arm_shx", "r_arm_shz", "right_elbow")
+REMOVED_ACTUATORS = tuple(f"{j}_actuator" for j in REMOVED_JOINTS)
+ARM_QUATS = {"left_shoulder_pitch_link": (1.0, 0.25, 0.1, 0.0), "right_elbow_link": (1.0, 0.0, 0.25, 0.0),
+             "right_shoulder_pitch_link": (1.0, -0.25, 0.1, 0.0), "left_elbow_link": (1.0, 0.0, 0.25, 0.0)}
+
+TERMINATION = RootJointFall(
+    height_range=slide_to_height(PELVIS_Z, (-0.3, 0.1)),
+    joint_bounds=(("pelvis_tilt", -np.pi / 4.5, np.pi / 12),
+                  ("pelvis_list", -np.pi / 12, np.pi / 8),
+                  ("pelvis_rotation", -np.pi / 8, np.pi / 8)))
+
+STAND_POSE = {"pelvis_ty": 0.0}
+
+
+def _edit(spec) -> None:
+    set_body_quats(spec, ARM_QUATS)
+    add_keyframe(spec, STAND_POSE, STAND_KEY)
+
+
+UNITREE_H1 = Body(
+    name="UnitreeH1", load_spec=loader(MODEL), tasks=humanoid_tasks(TERMINATION, run=True, robot="UnitreeH1"),
+    default_task="walk", datasets=DATASETS, default_dataset="real", family="humanoid",
+    joints_to_remove=REMOVED_JOINTS, actuators_to_remove=REMOVED_ACTUATORS,
+    control_dt=CONTROL_DT, timestep=TIMESTEP, init_keyframe=STAND_KEY, licence=LICENCES["locomujoco/unitree_h1"],
+    source=f"loco-mujoco 0.4.1 environments/data/{MODEL}", spec_edit=_edit, pomdp_hide=("velocities",))
+
+register_body(UNITREE_H1)
