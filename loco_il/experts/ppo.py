@@ -292,7 +292,7 @@ class PPO:
         self.updates += 1
         self._sync_actor()
         out = {k: float(torch.stack(v).mean()) for k, v in stats.items()}
-        out["std"] = float(self.policy.log_std.exp().mean())
+        out["std"] = float(self.policy.log_std.detach().exp().mean())
         return out
 
     def _sync_actor(self) -> None:
