@@ -108,6 +108,8 @@ def _for_env(data: Trajectories, env: Any, full_obs: bool) -> Trajectories:
                            f"observation has {full.dim} ({', '.join(full.names[:4])}, ...); regenerate the dataset "
                            f"(create_dataset(env, regenerate=True))")
     info = dict(data.info)
+    if info.get("task_id") not in (None, env.task_id):
+        info.setdefault("generated_in", info["task_id"])   # e.g. a variant's data from the base body's expert
     info["task_id"] = env.task_id
     if full_obs or mask is None or bool(np.all(mask)):
         return data.replace(info=info)

@@ -622,9 +622,9 @@ def _geom_bottom(model: mujoco.MjModel, data: mujoco.MjData, g: int) -> float:
     return centre[2] + float(up @ aabb[:3]) - float(np.abs(up) @ aabb[3:])
 
 
-def lowest_point(spec: mujoco.MjSpec) -> float:
-    """Height of the lowest collision geom of the moving bodies at qpos0."""
-    model = spec.compile()
+def lowest_point(spec: "mujoco.MjSpec | mujoco.MjModel") -> float:
+    """Height of the lowest collision geom of the moving bodies at qpos0 (of a spec or a compiled model)."""
+    model = spec.compile() if isinstance(spec, mujoco.MjSpec) else spec
     data = mujoco.MjData(model)
     mujoco.mj_kinematics(model, data)
     heights = [_geom_bottom(model, data, g) for g in range(model.ngeom)
@@ -639,10 +639,10 @@ def restore_ground_clearance(spec: mujoco.MjSpec, reference_low: float) -> float
     so that the joint coordinate still equals the height (the quantity health checks look at).
     Returns the applied shift.
     """
-    dz = reference_low - lowest_point(spec)
+    model = spec.compile()
+    dz = reference_low - lowest_point(model)
     if abs(dz) < 1e-9:
         return 0.0
-    model = spec.compile()
     for body in spec.worldbody.bodies:
         joints = list(body.joints)
         free = any(j.type == mujoco.mjtJoint.mjJNT_FREE for j in joints)
@@ -686,8 +686,9 @@ def load_randomization(cfg: "str | Path | Mapping[str, Any] | DomainRandomizatio
             name = body_name if body_name and (CONFIG_DIR / f"{body_name}.yaml").exists() else GENERIC_CONFIG
         path = CONFIG_DIR / f"{name}.yaml"
         if not path.exists():
-            raise RandomizationConfigError(f"no randomization config named {text!r}{_suggest(text, available_configs())}; "
-                                           f"named configs: default, {', '.join(available_configs())}")
+            names = available_configs()
+            raise RandomizationConfigError(f"no randomization config named {text!r}{_suggest(text, names)}; "
+                                           f"named configs: default, {', '.join(names)}")
     if not path.exists():
         raise RandomizationConfigError(f"randomization config file {str(path)!r} does not exist")
     import yaml

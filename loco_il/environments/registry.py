@@ -115,4 +115,6 @@ def make(task_id: str, **kwargs: Any):
     if "randomization" in kwargs and isinstance(kwargs["randomization"], (str, dict)):
         from loco_il.environments.randomization import load_randomization
         kwargs["randomization"] = load_randomization(kwargs["randomization"], tid.body)
+    if kwargs.get("randomization") is not None and "randomize_every" not in kwargs:
+        kwargs["randomize_every"] = getattr(kwargs["randomization"], "every", 1)
     return LocoEnv(body, tid.task, tid.dataset, variant=tid.variant, pomdp=tid.pomdp, **kwargs)

@@ -35,8 +35,9 @@ HORIZON = 1000
 class PendulumEnv:
     """InvertedPendulum-v5 as a mushroom-rl Environment (reset/step/info/stop), actions in [-1, 1]."""
 
-    def __init__(self, seed: int):
+    def __init__(self, seed: int, terminate: bool = True):
         self.env = gym.make("InvertedPendulum-v5")
+        self.terminate = terminate
         obs_dim = self.env.observation_space.shape[0]
         self.info = MDPInfo(Box(-np.inf * np.ones(obs_dim), np.inf * np.ones(obs_dim)),
                             Box(-np.ones(1), np.ones(1)), gamma=0.99, horizon=HORIZON, dt=0.04)
@@ -49,7 +50,7 @@ class PendulumEnv:
 
     def step(self, action):
         obs, reward, terminated, _, _ = self.env.step(ACTION_SCALE * np.clip(action, -1.0, 1.0))
-        return obs.astype(np.float64), float(reward), bool(terminated), {}
+        return obs.astype(np.float64), float(reward), bool(terminated) and self.terminate, {}
 
     def stop(self):
         pass

@@ -34,9 +34,9 @@ def test_pomdp_observes_positions_only(body):
     full_obs = full.set_sim_state(qpos, qvel)
     idx = [full.obs_spec.index(n) for n in pomdp.obs_spec.names]
     np.testing.assert_array_equal(pomdp.set_sim_state(qpos, qvel), full_obs[idx])
-    # stepping from the same state with the same action keeps them consistent
+    # stepping from the same state with the same action keeps them consistent (up to solver warm-start)
     action = np.full(full.model.nu, 0.3)
-    np.testing.assert_array_equal(pomdp.step(action)[0], full.step(action)[0][idx])
+    np.testing.assert_allclose(pomdp.step(action)[0], full.step(action)[0][idx], rtol=0, atol=1e-9)
 
 
 def test_hide_velocities_equals_pomdp():

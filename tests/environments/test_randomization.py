@@ -259,3 +259,17 @@ def test_apply_works_on_a_plain_spec_without_warnings():
         rand.apply(spec, np.random.default_rng(0))
         model = spec.compile()
     assert model.nbody == 8 and np.isfinite(model.body_mass).all()
+
+
+def test_coefficient_helpers_handle_scalars_and_arrays():
+    # joint.damping etc. are scalars in some mujoco versions and arrays in others
+    from types import SimpleNamespace
+
+    from loco_il.environments.randomization import get_first, scale_attr, set_first
+    scalar, array = SimpleNamespace(damping=2.0), SimpleNamespace(damping=np.array([2.0, 1.0, 0.0]))
+    scale_attr(scalar, "damping", 1.5)
+    scale_attr(array, "damping", 1.5)
+    assert scalar.damping == 3.0 and np.allclose(array.damping, [3.0, 1.5, 0.0])
+    set_first(scalar, "damping", get_first(scalar, "damping") + 1)
+    set_first(array, "damping", get_first(array, "damping") + 1)
+    assert scalar.damping == 4.0 and np.allclose(array.damping, [4.0, 1.5, 0.0])

@@ -23,8 +23,13 @@ def _forward(model):
 
 
 @pytest.fixture(scope="module")
-def hopper():
-    return LocoEnv.make("Hopper.run.perfect").model
+def hopper_env():
+    return LocoEnv.make("Hopper.run.perfect")
+
+
+@pytest.fixture(scope="module")
+def hopper(hopper_env):
+    return hopper_env.model
 
 
 def test_counts_match_imujoco():
@@ -40,8 +45,10 @@ def test_counts_match_imujoco():
 
 
 @pytest.mark.parametrize("variant, factor", [("lendec_25_leg", 0.75), ("leninc_25_leg", 1.25)])
-def test_length_variant_changes_the_leg(hopper, variant, factor):
-    model = LocoEnv.make(f"Hopper-{variant}.run.perfect").model
+def test_length_variant_changes_the_leg(hopper_env, variant, factor):
+    hopper, hopper_spec = hopper_env.model, hopper_env.base_spec
+    env = LocoEnv.make(f"Hopper-{variant}.run.perfect")
+    model = env.model
     d0, d = _forward(hopper), _forward(model)
     leg_j, foot_j = (_id(model, mujoco.mjtObj.mjOBJ_JOINT, n) for n in ("leg_joint", "foot_joint"))
     foot = _id(model, mujoco.mjtObj.mjOBJ_BODY, "foot")
@@ -55,14 +62,12 @@ def test_length_variant_changes_the_leg(hopper, variant, factor):
     assert model.geom_size[leg_geom, 1] == pytest.approx(factor * hopper.geom_size[leg_geom, 1])
     leg = _id(model, mujoco.mjtObj.mjOBJ_BODY, "leg")
     assert (model.body_mass[leg] < hopper.body_mass[leg]) == (factor < 1)   # mass follows the volume
-    # other limbs keep their size; the root is shifted so the feet start at the same height
+    # other limbs keep their size; the root is lifted/lowered by the change of the leg's length (0.5 m),
+    # so that the lowest point (the foot) starts at the same height above the floor
     thigh_geom = _id(model, mujoco.mjtObj.mjOBJ_GEOM, "thigh_geom")
     np.testing.assert_allclose(model.geom_size[thigh_geom], hopper.geom_size[thigh_geom])
-    bottom = lambda m, dd: dd.geom_xpos[1:, 2].min()  # noqa: E731 (coarse, all geoms but the floor)
-    assert bottom(model, d) != pytest.approx(bottom(hopper, d0))
-    env_spec = LocoEnv.make(f"Hopper-{variant}.run.perfect").base_spec
-    base_spec = LocoEnv.make("Hopper.run.perfect").base_spec
-    assert lowest_point(env_spec.copy()) == pytest.approx(lowest_point(base_spec.copy()), abs=1e-9)
+    assert model.qpos0[1] == pytest.approx(hopper.qpos0[1] + 0.5 * (factor - 1), abs=1e-9)
+    assert lowest_point(env.base_spec.copy()) == pytest.approx(lowest_point(hopper_spec.copy()), abs=1e-9)
 
 
 @pytest.mark.parametrize("body_name, variant, limb, factor", [

@@ -39,10 +39,12 @@ class ObsNormalizedPolicy(nn.Module):
         return self.normalizer(obs) if self.normalize else obs
 
     def distribution(self, obs: torch.Tensor) -> torch.distributions.Normal:
-        return self.policy.distribution(self.norm(obs))
+        # built without argument validation: this runs once per environment step in draw_action
+        mean, log_std = self.policy._mean_log_std(self.norm(obs))
+        return torch.distributions.Normal(mean, log_std.exp(), validate_args=False)
 
     def log_prob(self, obs: torch.Tensor, action: torch.Tensor) -> torch.Tensor:
-        return self.policy.log_prob(self.norm(obs), action)
+        return self.distribution(obs).log_prob(action).sum(-1)
 
     def deterministic(self, obs: torch.Tensor) -> torch.Tensor:
         return self.policy.deterministic(self.norm(obs))
@@ -63,7 +65,7 @@ def gae(rewards: np.ndarray, values: np.ndarray, next_values: np.ndarray, absorb
     cont = 1.0 - np.asarray(last, dtype=np.float64)
     cont[-1] = 0.0
     values = np.asarray(values, dtype=np.float64)
-    deltas = rewards + gamma * not_absorbing * np.asarray(next_values, dtype=np.float64) - values
+    deltas = rewards + gamma * np.asarray(next_values, dtype=np.float64) - values
     adv = np.empty(n)
     running = 0.0
     for t in range(n - 1, -1, -1):

@@ -278,7 +278,8 @@ class InitStates:
         if n_episodes is not None and len(out) != n_episodes:
             raise fail(f"it has {len(out)} episodes, the dataset has {n_episodes}")
         if (nq is not None and out.qpos.shape[1] != nq) or (nv is not None and out.qvel.shape[1] != nv):
-            raise fail(f"its states have nq={out.qpos.shape[1]}, nv={out.qvel.shape[1]}; the model has nq={nq}, nv={nv}")
+            raise fail(f"its states have nq={out.qpos.shape[1]}, nv={out.qvel.shape[1]}; "
+                       f"the model has nq={nq}, nv={nv}")
         if not (np.isfinite(out.qpos).all() and np.isfinite(out.qvel).all()):
             raise fail("it contains non-finite values")
         return out
@@ -433,13 +434,16 @@ def cached_rollouts(gen_env: Any, policy: Any, *, key: str, dataset_type: str, n
     if log is not None:
         log(f"[loco_il.datasets] generating {name} dataset of {key}: {n_episodes} episodes, seed {seed} -> {path}")
     full_info = {
-        "task_id": f"{key}.{dataset_type}", "dataset_type": dataset_type, "obs_names": list(gen_env.full_obs_spec.names),
+        "task_id": f"{key}.{dataset_type}", "dataset_type": dataset_type,
+        "obs_names": list(gen_env.full_obs_spec.names),
         "simulator": f"mujoco {mujoco.__version__}", "seed": int(seed), "policy_checksum": checksum,
-        "cache_key": hkey, "cache_fields": fields, "generator": f"loco_il.datasets.providers.expert v{GENERATOR_VERSION}",
+        "cache_key": hkey, "cache_fields": fields,
+        "generator": f"loco_il.datasets.providers.expert v{GENERATOR_VERSION}",
         "reward": "task default", "action_space": "[-1, 1] (clipped before recording)",
     }
     full_info.update(info)
-    data, init = rollout(gen_env, policy, episode_seeds(seed, n_episodes), info=full_info, log=log, label=name)
+    data, init = rollout(gen_env, policy, episode_seeds(seed, n_episodes), info=full_info, log=log,
+                         label=f"{key} {name}")
     init.save(side)          # sidecar first: a dataset file on disk always has its sidecar
     data.save(path)
     STATS["generated"] += 1
@@ -487,7 +491,8 @@ def _reject_unused(unused: Mapping[str, Any], kind: str) -> None:
 def create_preference_sets(env: Any, *, n_episodes: int | None = None, generation_seed: int = 0,
                            snapshots: Sequence[Any] | None = None, regenerate: bool = False,
                            verbose: bool = True, min_levels: int = MIN_PREFERENCE_LEVELS,
-                           return_init_states: bool = False) -> list[Trajectories] | tuple[list[Trajectories], list[InitStates]]:
+                           return_init_states: bool = False
+                           ) -> list[Trajectories] | tuple[list[Trajectories], list[InitStates]]:
     """One dataset per snapshot, ordered by mean return from worst to best (``info["level"]`` 0..K-1).
 
     ``snapshots``: expert files or expert objects (default: the task's installed

@@ -7,7 +7,7 @@ Facts from LocoMuJoCo 0.4.1 `loco_mujoco/environments/humanoids/base_humanoid.py
   the 14 arm joints (arm_flex/add/rot, elbow_flex, pro_sup, wrist_flex, wrist_dev, l and r) with their
   14 mot_* motors, plus the `<joint>_constraint` equalities of removed joints. -> 19 joints,
   observation 36 (17 positions + 19 velocities); 13 torque actions (HumanoidTorque) or 92 muscle
-  actions (HumanoidMuscle, ctrlrange [0, 1], mapped from [-1, 1]).
+  actions (HumanoidMuscle, see below).
 * Box feet (`_add_box_feet_to_xml_handle`, alpha 0.5): a box geom of half-size (0.112, 0.03, 0.05)
   at pos (-0.09, 0.019, 0) in toes_l / toes_r, euler (0, +0.15, 0) left and (0, -0.15, 0) right; the
   original foot geoms r_foot, r_bofoot, l_foot, l_bofoot are made non-colliding.
@@ -19,7 +19,15 @@ Facts from LocoMuJoCo 0.4.1 `loco_mujoco/environments/humanoids/base_humanoid.py
   outside [-pi/4.5, pi/4.5]. The pelvis body sits at z = 0.975, so the height band is [0.515, 1.075] m
   on the pelvis world z. Tasks walk (1.25 m/s) and run (2.5 m/s).
 
-Start pose: see STAND_POSE (box feet resting on the floor, measured with `mujoco.mj_geomDistance`).
+* Muscles: the XML's default class gives `<muscle ctrlrange="0 1">` and then `<motor ctrlrange="-1 1">`;
+  both set the one actuator default, so the compiled muscles have ctrlrange [-1, 1] (in LocoMuJoCo
+  too): actions in [-1, 0] mean zero excitation, (0, 1] excite.
+
+Start pose ("stand" keyframe, ours): qpos0 leaned forward by 0.07 rad (pelvis_tilt -0.07, both
+ankle_angle +0.07; the feet stay flat within 0.5 deg, the ankle axis being oblique): at qpos0 the centre
+of mass is 6.5 cm behind the middle of the box feet; leaned, it is over it. pelvis_ty -0.0088 puts the
+box feet on the floor (measured with `mujoco.mj_geomDistance`). With zero action the robot stays up
+for 0.34 s (torque) / 0.35 s (muscle).
 """
 from __future__ import annotations
 
@@ -59,7 +67,7 @@ TERMINATION = RootJointFall(
                   ("lumbar_bending", -np.pi / 10, np.pi / 10),
                   ("lumbar_rotation", -np.pi / 4.5, np.pi / 4.5)))
 
-STAND_POSE = {"pelvis_ty": 0.0}
+STAND_POSE = {"pelvis_ty": -0.0088, "pelvis_tilt": -0.07, "ankle_angle_l": 0.07, "ankle_angle_r": 0.07}
 
 
 def add_box_feet(spec: mujoco.MjSpec) -> None:

@@ -14,7 +14,9 @@ Facts from LocoMuJoCo 0.4.1 `loco_mujoco/environments/humanoids/talos.py`:
 * The model file's timestep is 0.002; LocoMuJoCo (and we) simulate at 0.001.
 
 Licence: CC BY-NC-ND 4.0 - the model is fetched at run time from the LocoMuJoCo sdist, never shipped.
-Start pose: see STAND_POSE (feet resting on the floor, measured with `mujoco.mj_geomDistance`).
+Start pose ("stand" keyframe, ours): qpos0 (centre of mass already over the feet) with pelvis_ty
++0.0011 so the foot boxes just touch the floor (measured with `mujoco.mj_geomDistance`; at qpos0 they
+are 1.1 mm inside it). With zero torque the robot stays up for 0.42 s.
 """
 from __future__ import annotations
 
@@ -43,7 +45,7 @@ TERMINATION = RootJointFall(
                   ("back_bky", -np.pi / 4, np.pi / 10),
                   ("back_bkz", -np.pi / 10, np.pi / 10)))
 
-STAND_POSE = {"pelvis_ty": 0.0}
+STAND_POSE = {"pelvis_ty": 0.0011}
 
 
 def _edit(spec) -> None:

@@ -14,7 +14,10 @@ Facts from LocoMuJoCo 0.4.1 `loco_mujoco/environments/quadrupeds/unitreeA1.py`:
   so the height band is [0.19, inf) m on the trunk world z.
 * The model file's timestep is 0.002; LocoMuJoCo (and we) simulate at 0.001.
 
-Start pose: see STAND_POSE (feet on the floor, measured with `mujoco.mj_geomDistance`).
+Start pose ("stand" keyframe, ours): qpos0 has straight legs with the calf joints at 0, outside their
+range [-2.697, -0.916]; we crouch every leg to thigh 0.8, calf -1.6 rad (hip 0) and lower trunk_tz by
+0.1313 m so the four feet touch the floor (measured with `mujoco.mj_geomDistance`): trunk at 0.299 m.
+With zero torque the legs fold and the height bound ends the episode after 0.34 s.
 """
 from __future__ import annotations
 
@@ -55,7 +58,9 @@ TASKS = {
                  description="UnitreeA1: walk at 0.5 m/s in a random direction drawn per episode (LocoMuJoCo hard)"),
 }
 
-STAND_POSE = {"trunk_tz": 0.0}
+STAND_POSE = {"trunk_tz": -0.1313,
+              **{f"{leg}_{part}_joint": angle for leg in ("FR", "FL", "RR", "RL")
+                 for part, angle in (("thigh", 0.8), ("calf", -1.6))}}
 
 
 def _edit(spec) -> None:

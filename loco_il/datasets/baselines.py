@@ -1,0 +1,235 @@
+"""Reference returns per task (expert and random policy) and normalized scores.
+
+``baselines.yaml`` (next to this file) holds, per ``<Body>.<task>``, only numbers that were really
+measured, each with how it was produced (command, seed, episodes, commit, simulator)::
+
+    tasks:
+      Hopper.run:
+        random: {return_mean, return_std, episodes, seed, policy, command, commit, simulator, date}
+        expert: {return_mean, return_std, episodes, seed, policy_checksum, expert_file, training_steps,
+                 command, commit, simulator, date}
+        datasets:
+          perfect: {n_episodes, n_transitions, generation_seed, cache_key, command, commit, simulator, date}
+
+``normalized_score(task, ret) = (ret - random) / (expert - random)``: 0 = random policy,
+1 = expert. Update entries with::
+
+    python -m loco_il.datasets.baselines update Hopper.run --episodes 10 --seed 0            # random + expert
+    python -m loco_il.datasets.baselines update Hopper.run --random-only --episodes 10
+    python -m loco_il.datasets.baselines update Hopper.run --dataset perfect                # + dataset sizes
+    python -m loco_il.datasets.baselines show [Hopper.run]
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+from typing import Any, Callable, Mapping
+
+import numpy as np
+
+BASELINES_FILE = Path(__file__).with_name("baselines.yaml")
+FORMAT = 1
+_HEADER = ("# Reference returns per task, written by `python -m loco_il.datasets.baselines update ...`.\n"
+           "# Only measured numbers; each entry records how it was produced (command, seed, commit).\n"
+           "# normalized score = (return - random.return_mean) / (expert.return_mean - random.return_mean)\n")
+
+
+class BaselineMissingError(KeyError):
+    """No baseline (or no expert/random part of it) for a task; the message says how to add one."""
+
+    def __str__(self) -> str:
+        return str(self.args[0])
+
+
+def _key(task_id: str) -> str:
+    from loco_il.datasets.providers.expert import task_key
+    return task_key(task_id)
+
+
+def load_baselines(path: str | Path | None = None) -> dict[str, dict[str, Any]]:
+    """All entries: ``{"<Body>.<task>": {"random": {...}, "expert": {...}, "datasets": {...}}}``."""
+    import yaml
+    path = Path(path) if path is not None else BASELINES_FILE
+    if not path.is_file():
+        return {}
+    with open(path) as fh:
+        doc = yaml.safe_load(fh) or {}
+    if not isinstance(doc, dict) or not isinstance(doc.get("tasks", {}), dict):
+        raise ValueError(f"{path}: expected a mapping with a 'tasks' mapping")
+    return dict(doc.get("tasks") or {})
+
+
+def get_baseline(task_id: str, path: str | Path | None = None) -> dict[str, Any]:
+    """The entry of a task (any Task-ID form: ``Hopper.run``, ``Hopper.run.perfect.pomdp``...)."""
+    key = _key(task_id)
+    table = load_baselines(path)
+    if key not in table:
+        have = ", ".join(sorted(table)) or "(none)"
+        raise BaselineMissingError(
+            f"no baseline for {key} in {path or BASELINES_FILE} (tasks with one: {have}); measure it with "
+            f"`python -m loco_il.datasets.baselines update {key}` (needs an installed expert for the expert part)")
+    return table[key]
+
+
+def normalized_score(task_id: str, ret: Any, path: str | Path | None = None) -> Any:
+    """(ret - random) / (expert - random) with the task's recorded means; works on scalars and arrays."""
+    entry = get_baseline(task_id, path)
+    key = _key(task_id)
+    for part in ("random", "expert"):
+        if not isinstance(entry.get(part), Mapping) or entry[part].get("return_mean") is None:
+            extra = "" if part == "random" else " (an expert must be installed: see loco_il/experts/shipped/README.md)"
+            raise BaselineMissingError(
+                f"the baseline of {key} has no {part} return; measure it with "
+                f"`python -m loco_il.datasets.baselines update {key}`{extra}")
+    lo, hi = float(entry["random"]["return_mean"]), float(entry["expert"]["return_mean"])
+    if hi == lo:
+        raise ValueError(f"{key}: expert and random returns are equal ({hi}); cannot normalize")
+    out = (np.asarray(ret, dtype=np.float64) - lo) / (hi - lo)
+    return float(out) if out.ndim == 0 else out
+
+
+# ----------------------------------------------------------------------------- measuring
+
+
+def evaluate(task_id: str, policy: Callable[[np.ndarray], np.ndarray] | None, episodes: int, seed: int,
+             log: Callable[[str], None] | None = None) -> dict[str, Any]:
+    """Mean/std return of a deterministic policy (None = uniform random actions in [-1, 1]) over
+    ``episodes`` episodes whose reset seeds come from ``episode_seeds(seed, episodes)``."""
+    from loco_il.datasets.providers.expert import episode_seeds
+    from loco_il.environments.registry import make
+    env = make(f"{_key(task_id)}.{_any_dataset(task_id)}")
+    rng = np.random.default_rng(seed)
+    returns, lengths = [], []
+    for i, s in enumerate(episode_seeds(seed, episodes)):
+        env.seed(int(s))
+        obs = env.reset()
+        total, t = 0.0, 0
+        for t in range(int(env.info.horizon)):
+            a = rng.uniform(-1.0, 1.0, env.model.nu) if policy is None else np.clip(policy(obs), -1.0, 1.0)
+            obs, r, absorbing, _ = env.step(a)
+            total += r
+            if absorbing:
+                break
+        returns.append(total)
+        lengths.append(t + 1)
+        if log:
+            log(f"[baselines] {task_id}: episode {i + 1}/{episodes} return {total:.2f} length {t + 1}")
+    env.stop()
+    return {"return_mean": float(np.mean(returns)), "return_std": float(np.std(returns)), "episodes": int(episodes),
+            "seed": int(seed), "mean_episode_length": float(np.mean(lengths))}
+
+
+def _any_dataset(task_id: str) -> str:
+    from loco_il.environments.registry import get_body
+    body = get_body(_key(task_id).split(".")[0].split("-")[0])
+    return body.default_dataset
+
+
+def _provenance(command: str) -> dict[str, Any]:
+    import mujoco
+    from loco_il.experts.policy import git_commit
+    return {"command": command, "commit": git_commit(), "uncommitted_changes": _dirty(),
+            "simulator": f"mujoco {mujoco.__version__}", "date": time.strftime("%Y-%m-%d")}
+
+
+def _dirty() -> bool | None:
+    """Whether the checkout had uncommitted changes (read-only `git status`); None if unknown."""
+    import subprocess
+    try:
+        out = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"],
+                             cwd=Path(__file__).resolve().parent, capture_output=True, text=True, timeout=10)
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return bool(out.stdout.strip()) if out.returncode == 0 else None
+
+
+def save_baselines(table: Mapping[str, Any], path: str | Path | None = None) -> Path:
+    """Write the table (atomically), tasks sorted."""
+    import yaml
+    from loco_il.utils.atomic import atomic_open
+    path = Path(path) if path is not None else BASELINES_FILE
+    doc = {"format": FORMAT, "tasks": {k: table[k] for k in sorted(table)}}
+    text = _HEADER + yaml.safe_dump(json.loads(json.dumps(doc)), sort_keys=False, default_flow_style=False)
+    with atomic_open(path, "w") as fh:
+        fh.write(text)
+    return path
+
+
+def update_baseline(task_id: str, *, episodes: int = 10, seed: int = 0, random: bool = True, expert: bool = True,
+                    dataset: str | None = None, command: str | None = None, path: str | Path | None = None,
+                    log: Callable[[str], None] | None = None) -> dict[str, Any]:
+    """Measure and store the random and/or expert returns (and optionally a dataset's size) of a task."""
+    key = _key(task_id)
+    command = command or f"python -m loco_il.datasets.baselines update {key} --episodes {episodes} --seed {seed}"
+    table = load_baselines(path)
+    entry = dict(table.get(key) or {})
+    if random:
+        entry["random"] = {**evaluate(key, None, episodes, seed, log),
+                           "policy": "uniform random actions in [-1, 1] (numpy default_rng(seed))",
+                           **_provenance(command)}
+    if expert:
+        from loco_il.datasets.providers.expert import find_expert
+        from loco_il.experts.policy import load_expert
+        path_e = find_expert(key)
+        pol = load_expert(path_e)
+        meta = pol.metadata
+        entry["expert"] = {**evaluate(key, pol, episodes, seed, log), "policy_checksum": pol.checksum(),
+                           "expert_file": _relative(path_e), "training_steps": meta.get("training_steps"),
+                           "training_commit": meta.get("commit"), **_provenance(command)}
+    if dataset is not None:
+        from loco_il.datasets.create import create_dataset
+        data = create_dataset(f"{key}.{dataset}", generation_seed=seed, verbose=log is not None)
+        sizes = dict(entry.get("datasets") or {})
+        sizes[dataset] = {"n_episodes": data.n_trajectories, "n_transitions": data.n_transitions,
+                          "generation_seed": int(seed), "cache_key": data.info.get("cache_key"),
+                          "return_mean": data.info.get("expert_return_mean"), **_provenance(command)}
+        entry["datasets"] = sizes
+    table[key] = entry
+    save_baselines(table, path)
+    return entry
+
+
+def _relative(p: Path) -> str:
+    root = Path(__file__).resolve().parents[2]
+    try:
+        return str(Path(p).resolve().relative_to(root))
+    except ValueError:
+        return str(p)
+
+
+__all__ = ["BASELINES_FILE", "BaselineMissingError", "load_baselines", "get_baseline", "normalized_score",
+           "evaluate", "update_baseline", "save_baselines"]
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m loco_il.datasets.baselines", description=__doc__.split("\n")[0])
+    sub = ap.add_subparsers(dest="cmd", required=True)
+    up = sub.add_parser("update", help="measure and store a task's baseline")
+    up.add_argument("task")
+    up.add_argument("--episodes", type=int, default=10)
+    up.add_argument("--seed", type=int, default=0)
+    up.add_argument("--random-only", action="store_true")
+    up.add_argument("--expert-only", action="store_true")
+    up.add_argument("--dataset", choices=("perfect", "preference"), default=None,
+                    help="also generate this dataset and record its size")
+    show = sub.add_parser("show", help="print the table (or one task)")
+    show.add_argument("task", nargs="?")
+    args = ap.parse_args(argv)
+    if args.cmd == "show":
+        out = get_baseline(args.task) if args.task else load_baselines()
+        print(json.dumps(out, indent=2))
+        return 0
+    cmd = "python -m loco_il.datasets.baselines " + " ".join(argv if argv is not None else sys.argv[1:])
+    entry = update_baseline(args.task, episodes=args.episodes, seed=args.seed, random=not args.expert_only,
+                            expert=not args.random_only, dataset=args.dataset, command=cmd,
+                            log=lambda m: print(m, file=sys.stderr, flush=True))
+    print(json.dumps({_key(args.task): entry}, indent=2))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
+
