@@ -102,8 +102,7 @@ class GAIL(ILAgent):
     def _sample_expert(self, n: int) -> tuple:
         e = self._expert_tensors
         idx = torch.as_tensor(self.rng.integers(0, e["obs"].shape[0], size=n), device=self.device)
-        pick = lambda x: None if x is None else x[idx]  # noqa: E731
-        return pick(e["obs"]), pick(e["actions"]), pick(e["next_obs"])
+        return tuple(None if e[k] is None else e[k][idx] for k in ("obs", "actions", "next_obs"))
 
     def _disc_loss(self, x_expert: torch.Tensor, x_agent: torch.Tensor) -> tuple[torch.Tensor, dict]:
         d = self.discriminator

@@ -64,6 +64,14 @@ class JointLayout:
     vel_names: tuple[str, ...]
 
 
+def root_joint_world_axis(model: mujoco.MjModel, joint: int) -> np.ndarray:
+    """A root joint's axis in world coordinates (`jnt_axis` is in the body frame, which may be rotated:
+    LocoMuJoCo's humanoid pelvis is turned 90 degrees about x, making `pelvis_ty` its vertical slide)."""
+    rot = np.zeros(9)
+    mujoco.mju_quat2Mat(rot, model.body_quat[model.jnt_bodyid[joint]])
+    return rot.reshape(3, 3) @ model.jnt_axis[joint]
+
+
 def horizontal_root_qpos(model: mujoco.MjModel) -> set[int]:
     """qpos addresses of the root's horizontal world coordinates (excluded from observations).
 
@@ -79,8 +87,7 @@ def horizontal_root_qpos(model: mujoco.MjModel) -> set[int]:
         if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE:
             excluded.update((adr, adr + 1))
         elif model.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE:
-            axis = model.jnt_axis[j]
-            if abs(axis[2]) < 1e-6:
+            if abs(root_joint_world_axis(model, j)[2]) < 1e-6:
                 excluded.add(adr)
     return excluded
 
@@ -100,9 +107,11 @@ def root_xy_projection(model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray]:
         if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE:
             idx += [adr, adr + 1]
             cols += [(1.0, 0.0), (0.0, 1.0)]
-        elif model.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE and abs(model.jnt_axis[j][2]) < 1e-6:
-            idx.append(adr)
-            cols.append(tuple(model.jnt_axis[j][:2]))
+        elif model.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE:
+            axis = root_joint_world_axis(model, j)
+            if abs(axis[2]) < 1e-6:
+                idx.append(adr)
+                cols.append(tuple(axis[:2]))
     return np.array(idx, dtype=np.intp), np.array(cols, dtype=np.float64).reshape(-1, 2).T
 
 

@@ -528,6 +528,7 @@ class PPOTrainer:
         cfg = self.cfg
         self._t0 = self._last_ckpt_time = self._last_log = time.time()
         self._last_log_step = -1
+        self._timers: dict[str, float] = collections.defaultdict(float)
         start_step = self.step
         if self.resumed_from is not None:
             self.log(f"[ppo] resuming {self.task_id} from {self.ckpt_path} at step {self.step}")
@@ -542,13 +543,19 @@ class PPOTrainer:
             while self.step < cfg.total_steps:
                 if cfg.lr_decay:
                     self.agent.set_lr(cfg.lr * max(0.0, 1.0 - self.step / cfg.total_steps))
+                t0 = time.time()
                 batch = self.collect()
+                t1 = time.time()
                 stats = self.agent.update(batch)
+                t2 = time.time()
                 self.iteration += 1
                 if cfg.eval_interval and self.step - max(self.last_eval_step, 0) >= cfg.eval_interval:
                     self.evaluate()
                 self._maybe_snapshot()
                 now = time.time()
+                self._timers["collect"] += t1 - t0
+                self._timers["update"] += t2 - t1
+                self._timers["eval"] += now - t2
                 if now - self._last_log >= cfg.log_interval_s:
                     self._progress(start_step, stats)
                     self._last_log, self._last_log_step = now, self.step
@@ -584,8 +591,12 @@ class PPOTrainer:
         ev = f"{self.last_eval['return_mean']:.1f}" if self.last_eval else "n/a"
         self.log(f"[ppo] step {self.step}/{self.cfg.total_steps} ({100 * self.step / self.cfg.total_steps:.0f}%) | "
                  f"{sps:.0f} steps/s | return {ret} len {length} | eval {ev} (best {self.best_eval:.1f}) | "
-                 f"t {self.wall_time + elapsed:.0f}s | kl {stats.get('approx_kl', 0):.4f} "
+                 f"t {self.wall_time + elapsed:.0f}s ({self._time_split()}) | kl {stats.get('approx_kl', 0):.4f} "
                  f"clip {stats.get('clipfrac', 0):.3f} vloss {stats.get('v_loss', 0):.3f} std {stats.get('std', 0):.3f}")
+
+    def _time_split(self) -> str:
+        total = sum(self._timers.values()) or 1.0
+        return " ".join(f"{k} {100 * v / total:.0f}%" for k, v in self._timers.items())
 
     def close(self) -> None:
         for attr in ("envs", "eval_envs"):

@@ -101,8 +101,13 @@ def rollout(env, act, n_episodes, seed):
         returns.append(ret)
         carts.append(np.mean(xs[len(xs) // 2:]))
     s, a, r, s2, ab, la = (np.array(x) for x in zip(*rows))
-    data = types.SimpleNamespace(obs=s, actions=a.astype(np.float64), rewards=r.astype(np.float64),
-                                 next_obs=s2, absorbing=ab.astype(bool), last=la.astype(bool))
+    fields = dict(obs=s.astype(np.float64), actions=a.astype(np.float64), rewards=r.astype(np.float64),
+                  next_obs=s2.astype(np.float64), absorbing=ab.astype(bool), last=la.astype(bool))
+    try:  # the project's dataset class when it is there (validates the arrays)
+        from loco_il.datasets.trajectory import Trajectories
+        data = Trajectories(**fields, info={"dataset_type": "perfect", "source": "linear controller (test)"})
+    except ImportError:
+        data = types.SimpleNamespace(**fields)
     return data, np.array(returns), float(np.mean(carts))
 
 
@@ -168,6 +173,7 @@ def test_onpolicy_adversarial_imitates_balancing_expert(setting, algo):
     env, source, demos, expert = setting
     _seed(0)
     env.seed(0)
+    algo.check_dataset_type("perfect")
     kwargs = dict(ADVERSARIAL_KW)
     if algo is VAIL:
         kwargs.update(z_dim=16, info_constraint=0.5, beta_lr=1e-3)

@@ -56,7 +56,9 @@ def test_dims_timing_and_metadata(robot):
     # LocoMuJoCo drops the two horizontal root slides; the first entry is the vertical one
     vertical, horizontal = (("q_trunk_tz", {"q_trunk_tx", "q_trunk_ty"}) if robot == "UnitreeA1"
                             else ("q_pelvis_ty", {"q_pelvis_tx", "q_pelvis_tz"}))
-    assert env.obs_spec.names[0] == vertical and not horizontal & set(env.obs_spec.names)
+    assert env.obs_spec.names[0] == vertical and not horizontal & set(env.obs_spec.names), (
+        "observations.horizontal_root_qpos must use the slide axis in world coordinates (the humanoid "
+        "pelvis body is rotated 90 deg about x, so pelvis_ty is vertical)")
 
 
 def test_unitree_a1_command_features():

@@ -116,7 +116,7 @@ def test_go1_commands():
     assert np.allclose(np.linalg.norm(features, axis=1), 1.0) and np.ptp(features[:, 0]) > 0
 
 
-@pytest.mark.parametrize("name", ["G1", "UnitreeGo1"])
+@pytest.mark.parametrize("name", ["G1", "ApptronikApollo", "UnitreeGo1", "RobotisOP3"])
 def test_home_action_holds_the_keyframe(name):
     env, *_ = _envs(name)
     action = np.asarray(get_body(name).extra["home_action"])

@@ -65,7 +65,7 @@ def gae(rewards: np.ndarray, values: np.ndarray, next_values: np.ndarray, absorb
     cont = 1.0 - np.asarray(last, dtype=np.float64)
     cont[-1] = 0.0
     values = np.asarray(values, dtype=np.float64)
-    deltas = rewards + gamma * np.asarray(next_values, dtype=np.float64) - values
+    deltas = rewards + gamma * not_absorbing * np.asarray(next_values, dtype=np.float64) - values
     adv = np.empty(n)
     running = 0.0
     for t in range(n - 1, -1, -1):

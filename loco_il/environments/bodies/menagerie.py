@@ -41,11 +41,10 @@ Rules (written once, applied to every row):
 
 Hold behaviour: an action of zeros maps to the centre of each control range, which is not the
 standing pose for most of these robots. `Body.extra["home_action"]` (position-servo robots only,
-computed lazily from the keyframe's ctrl or, without one, the keyframe joint angles) is the action
-that commands the keyframe pose. Measured in the env from the keyframe (steps of 10 ms until the
-fall termination fires, 300 at most): G1 and Go1 stand the full 3 s under the home action;
-BoosterT1 ~2.2 s (it topples slowly), Apollo ~0.9 s, BerkeleyHumanoid ~0.4 s (open-loop servo
-targets cannot balance them); OP3 stands under zero action (its home action is 0). Under zero
+computed lazily from the keyframe's joint angles) is the action that commands the keyframe pose. Measured in the env from the keyframe (steps of 10 ms until the
+fall termination fires, 300 at most): G1, Apollo and Go1 stand the full 3 s under the home
+action; BoosterT1 ~2.2 s (it topples slowly), BerkeleyHumanoid ~0.4 s (open-loop servo targets
+cannot balance them); OP3 stands under zero action (its home action is 0). Under zero
 action every robot but OP3 falls within 0.2-2.6 s (Go1 sags onto its belly); H1 has torque motors,
 so zero action = zero torque and it collapses (no home action offered).
 
@@ -118,6 +117,9 @@ class LazyExtra(Mapping):
             self._values[key] = self._factories[key]()
         return self._values[key]
 
+    def __contains__(self, key: object) -> bool:   # without computing the value
+        return key in self._factories
+
     def __iter__(self) -> Iterator[str]:
         return iter(self._factories)
 
@@ -131,17 +133,23 @@ class LazyExtra(Mapping):
 def home_action(load_spec: Callable[[], mujoco.MjSpec], key_name: str) -> np.ndarray:
     """The normalized action in [-1, 1] whose servo targets are the keyframe pose.
 
-    Uses the keyframe's ctrl when it has one, else the keyframe angles of the actuated joints;
-    maps them with the same affine map the env uses (centre and half-width of each ctrlrange).
+    A position servo on a joint (gear 1, bias = -kp * q) gets its joint's keyframe angle as target;
+    other actuators keep the keyframe's ctrl. (Angles rather than ctrl because Menagerie's Apollo
+    keyframe lists its ctrl in a different order from its actuators.) The targets are mapped with
+    the env's affine map (centre and half-width of each ctrlrange) and clipped to [-1, 1].
     """
     model = load_spec().compile()
     key = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, key_name)
     if key < 0:
         raise KeyError(f"model has no keyframe {key_name!r}")
     ctrl = model.key_ctrl[key].copy()
-    if not np.any(ctrl):
-        joints = model.actuator_trnid[:, 0]
-        ctrl = model.key_qpos[key][model.jnt_qposadr[joints]]
+    for a in range(model.nu):
+        kp = model.actuator_gainprm[a, 0]
+        servo = (model.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT
+                 and model.actuator_biastype[a] == mujoco.mjtBias.mjBIAS_AFFINE
+                 and model.actuator_gear[a, 0] == 1.0 and np.isclose(model.actuator_biasprm[a, 1], -kp))
+        if servo:
+            ctrl[a] = model.key_qpos[key][model.jnt_qposadr[model.actuator_trnid[a, 0]]]
     limited = model.actuator_ctrllimited.astype(bool)
     lo = np.where(limited, model.actuator_ctrlrange[:, 0], -1.0)
     hi = np.where(limited, model.actuator_ctrlrange[:, 1], 1.0)

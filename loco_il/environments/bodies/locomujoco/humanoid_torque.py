@@ -18,7 +18,8 @@ Facts from LocoMuJoCo 0.4.1 `loco_mujoco/environments/humanoids/base_humanoid.py
   lumbar_extension outside [-pi/4, pi/10], lumbar_bending outside [-pi/10, pi/10], lumbar_rotation
   outside [-pi/4.5, pi/4.5]. The pelvis body sits at z = 0.975, so the height band is [0.515, 1.075] m
   on the pelvis world z. Tasks walk (1.25 m/s) and run (2.5 m/s).
-
+* The pelvis body is rotated 90 deg about x (OpenSim's y-up frame), so pelvis_ty is the vertical slide
+  and pelvis_tx / pelvis_tz are the horizontal ones (the ones the observation leaves out).
 * Muscles: the XML's default class gives `<muscle ctrlrange="0 1">` and then `<motor ctrlrange="-1 1">`;
   both set the one actuator default, so the compiled muscles have ctrlrange [-1, 1] (in LocoMuJoCo
   too): actions in [-1, 0] mean zero excitation, (0, 1] excite.

@@ -1,0 +1,113 @@
+"""`build_agent(name, env_info, cfg)`: an `ILAgent` from an `experiment_configs/algo/<name>.yaml` config.
+
+Every algorithm config has the same shape (the keys the experiment runner reads):
+
+    name: lsiq                 # registry name (loco_il.algorithms.ALGORITHMS)
+    policy:                    # the GaussianPolicy: hidden sizes, init_log_std (unsquashed policies only)
+      hidden: [256, 256]
+    core:                      # online algorithms only: how mushroom-rl's Core drives the agent
+      n_steps_per_fit: 1
+      n_env_steps: 1000000     # default training budget (env steps)
+    pretrain_steps: 100000     # offline algorithms only (BC): default budget in gradient steps
+    params: {...}              # keyword arguments of the agent's constructor
+
+The policy is tanh-squashed for the SAC-based agents (IQ-Learn, LS-IQ, SQIL: `OffPolicyILAgent`) and
+unsquashed with a state-independent log-std for the others (BC, GAIL, VAIL, GAIfO), as their constructors
+expect. Unknown constructor keywords fail here, naming the keyword and the agent's accepted ones.
+"""
+from __future__ import annotations
+
+import inspect
+from typing import Any, Mapping
+
+from loco_il.algorithms.common.agent_base import ILAgent, get_algorithm
+from loco_il.algorithms.common.networks import GaussianPolicy
+
+#: default training budget when an algorithm config gives none
+DEFAULT_ENV_STEPS = 1_000_000
+
+
+def _plain(cfg: Any) -> dict:
+    if cfg is None:
+        return {}
+    try:
+        from omegaconf import DictConfig, OmegaConf
+        if isinstance(cfg, DictConfig):
+            return OmegaConf.to_container(cfg, resolve=True)
+    except ImportError:  # pragma: no cover - omegaconf comes with hydra
+        pass
+    return dict(cfg)
+
+
+def is_offpolicy(cls: type[ILAgent]) -> bool:
+    from loco_il.algorithms.common.sac import OffPolicyILAgent
+    return issubclass(cls, OffPolicyILAgent)
+
+
+def is_offline(cls: type[ILAgent], cfg: Mapping[str, Any]) -> bool:
+    """An agent trained without environment interaction (BC: `pretrain`, no `core` section)."""
+    return hasattr(cls, "pretrain") and not cfg.get("core")
+
+
+def default_budget(cfg: Mapping[str, Any]) -> int:
+    """The algorithm's own training budget: `pretrain_steps` (offline) or `core.n_env_steps`."""
+    cls = get_algorithm(cfg["name"])
+    if is_offline(cls, cfg):
+        return int(cfg.get("pretrain_steps") or 100_000)
+    return int((cfg.get("core") or {}).get("n_env_steps") or DEFAULT_ENV_STEPS)
+
+
+def steps_per_fit(cfg: Mapping[str, Any]) -> int:
+    """`core.n_steps_per_fit` (1 for off-policy agents, the on-policy batch for GAIL/VAIL/GAIfO)."""
+    cls = get_algorithm(cfg["name"])
+    default = 1 if is_offpolicy(cls) else 1024
+    return int((cfg.get("core") or {}).get("n_steps_per_fit") or default)
+
+
+def build_policy(cls: type[ILAgent], obs_dim: int, act_dim: int, policy_cfg: Mapping[str, Any]) -> GaussianPolicy:
+    pc = dict(policy_cfg or {})
+    hidden = tuple(int(h) for h in pc.pop("hidden", (256, 256)))
+    init_log_std = float(pc.pop("init_log_std", 0.0))
+    if pc:
+        raise ValueError(f"unknown policy keys {sorted(pc)} (known: hidden, init_log_std)")
+    return GaussianPolicy(obs_dim, act_dim, hidden=hidden, squash=is_offpolicy(cls), init_log_std=init_log_std)
+
+
+def _check_params(cls: type[ILAgent], params: Mapping[str, Any]) -> None:
+    accepted: set[str] = set()
+    open_kwargs = False
+    for klass in cls.__mro__:
+        if klass is object or "__init__" not in vars(klass):
+            continue
+        sig = inspect.signature(klass.__init__)
+        accepted.update(n for n, p in sig.parameters.items() if p.kind not in (p.VAR_KEYWORD, p.VAR_POSITIONAL))
+        if not any(p.kind == p.VAR_KEYWORD for p in sig.parameters.values()):
+            open_kwargs = False
+            break
+        open_kwargs = True
+        if klass is ILAgent:
+            break
+    unknown = sorted(set(params) - accepted)
+    if unknown and not open_kwargs:
+        accepted -= {"self", "mdp_info", "policy_module", "device", "seed"}
+        raise ValueError(f"{cls.pretty_name()} has no parameter(s) {unknown}; accepted: {sorted(accepted)}")
+
+
+def build_agent(name: str | None, env_info: Any, cfg: Mapping[str, Any], *, seed: int | None = None,
+                device: str = "cpu") -> ILAgent:
+    """Build the agent described by an algorithm config (see the module docstring)."""
+    cfg = _plain(cfg)
+    name = name or cfg.get("name")
+    cls = get_algorithm(name)
+    obs_dim = int(env_info.observation_space.shape[0])
+    act_dim = int(env_info.action_space.shape[0])
+    policy = build_policy(cls, obs_dim, act_dim, cfg.get("policy") or {})
+    params = dict(cfg.get("params") or {})
+    for key, value in params.items():  # YAML lists -> tuples for Sequence arguments
+        if isinstance(value, list):
+            params[key] = tuple(value)
+    _check_params(cls, params)
+    return cls(env_info, policy, device=device, seed=seed, **params)
+
+
+__all__ = ["build_agent", "build_policy", "default_budget", "steps_per_fit", "is_offline", "is_offpolicy"]

@@ -1,0 +1,136 @@
+"""Run checkpoints: everything needed to continue a killed training run where it stopped.
+
+`<run_dir>/checkpoint.pt` (written atomically with `loco_il.utils.atomic`, so a kill mid-write leaves
+the previous checkpoint intact) holds::
+
+    {"format": "loco_il.run_checkpoint/v1",
+     "agent": agent.state_dict(),    # networks, optimizers, normalizers, counters, the agent's RNG states
+     "agent_extra": {"replay": ...}, # state the agent does not checkpoint itself (the replay memory)
+     "counters": {"step", "env_steps", "updates", "episodes", "n_evals", ...},
+     "rng": {"python", "numpy", "torch"},            # global RNG states
+     "env_rng": {...},                               # the training env's generator (resets, noise)
+     "wall_time": seconds trained so far, "wandb_id": ..., "config": the run's resolved config,
+     "finished": bool}
+
+Checkpoints are taken at chunk boundaries (after a whole `Core.learn` call), where mushroom-rl's
+Core holds no state of its own: it resets the environment at the start of every `learn` call.
+A resumed run therefore repeats the interrupted chunk exactly as the killed run would have,
+and ends with the same total number of steps as an uninterrupted run.
+"""
+from __future__ import annotations
+
+import os
+import random
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+import torch
+
+from loco_il.utils.atomic import atomic_torch_save
+
+FORMAT = "loco_il.run_checkpoint/v1"
+CHECKPOINT_NAME = "checkpoint.pt"
+
+#: keys of the run config that may change between a run and its resumption
+RESUMABLE_KEYS = frozenset({"resume", "stop_after_steps", "logger", "eval", "n_steps", "checkpoint_every",
+                            "device", "torch_threads", "results_dir", "budget_per_algo", "print_table"})
+
+
+class CheckpointError(RuntimeError):
+    pass
+
+
+def global_rng_state() -> dict[str, Any]:
+    state = {"python": random.getstate(), "numpy": np.random.get_state(), "torch": torch.get_rng_state()}
+    if torch.cuda.is_available():
+        state["cuda"] = torch.cuda.get_rng_state_all()
+    return state
+
+
+def set_global_rng_state(state: Mapping[str, Any]) -> None:
+    random.setstate(state["python"])
+    np.random.set_state(state["numpy"])
+    torch.set_rng_state(state["torch"])
+    if "cuda" in state and torch.cuda.is_available():
+        torch.cuda.set_rng_state_all(state["cuda"])
+
+
+def env_rng_state(env: Any) -> dict[str, Any] | None:
+    rng = getattr(env, "_rng", None)
+    if not isinstance(rng, np.random.Generator):
+        return None
+    return {"bit_generator": rng.bit_generator.state, "episodes": getattr(env, "_episodes", None)}
+
+
+def set_env_rng_state(env: Any, state: Mapping[str, Any] | None) -> None:
+    if not state:
+        return
+    rng = getattr(env, "_rng", None)
+    if isinstance(rng, np.random.Generator):
+        rng.bit_generator.state = state["bit_generator"]
+    if state.get("episodes") is not None and hasattr(env, "_episodes"):
+        env._episodes = state["episodes"]
+
+
+def agent_extra_state(agent: Any) -> dict[str, Any]:
+    """State the agent's own `state_dict` leaves out: the replay memory of off-policy agents."""
+    extra = {}
+    replay = getattr(agent, "replay", None)
+    if replay is not None and hasattr(replay, "state_dict"):
+        extra["replay"] = replay.state_dict()
+    return extra
+
+
+def load_agent_extra_state(agent: Any, extra: Mapping[str, Any]) -> None:
+    if "replay" in extra:
+        agent.replay.load_state_dict(extra["replay"])
+
+
+def save_checkpoint(path: str | os.PathLike, *, agent: Any, env: Any, counters: Mapping[str, Any],
+                    wall_time: float, config: Mapping[str, Any], wandb_id: str | None = None,
+                    finished: bool = False, extra: Mapping[str, Any] | None = None) -> None:
+    atomic_torch_save({"format": FORMAT, "agent": agent.state_dict(), "agent_extra": agent_extra_state(agent),
+                       "counters": dict(counters), "rng": global_rng_state(), "env_rng": env_rng_state(env),
+                       "wall_time": float(wall_time), "config": dict(config), "wandb_id": wandb_id,
+                       "finished": bool(finished), "extra": dict(extra or {})}, path)
+
+
+def load_checkpoint(path: str | os.PathLike) -> dict[str, Any]:
+    path = Path(path)
+    try:
+        ckpt = torch.load(path, map_location="cpu", weights_only=False)
+    except Exception as exc:
+        raise CheckpointError(f"cannot read checkpoint {path} ({type(exc).__name__}: {exc}); delete it or run "
+                              f"with resume=false to start over") from exc
+    if not isinstance(ckpt, dict) or ckpt.get("format") != FORMAT:
+        raise CheckpointError(f"{path} is not a loco_il run checkpoint (format {FORMAT}); delete it or run with "
+                              f"resume=false to start over")
+    return ckpt
+
+
+def restore(ckpt: Mapping[str, Any], *, agent: Any, env: Any) -> None:
+    """Put agent, env and global RNGs back into the checkpointed state (agent RNGs last: its own)."""
+    set_global_rng_state(ckpt["rng"])
+    set_env_rng_state(env, ckpt.get("env_rng"))
+    agent.load_state_dict(ckpt["agent"])
+    load_agent_extra_state(agent, ckpt.get("agent_extra") or {})
+
+
+def config_differences(old: Mapping[str, Any], new: Mapping[str, Any], prefix: str = "") -> list[str]:
+    """Dotted keys whose values differ, ignoring `RESUMABLE_KEYS` at the top level."""
+    diffs = []
+    for key in sorted(set(old) | set(new)):
+        if not prefix and key in RESUMABLE_KEYS:
+            continue
+        a, b = old.get(key, "<missing>"), new.get(key, "<missing>")
+        name = f"{prefix}{key}"
+        if isinstance(a, Mapping) and isinstance(b, Mapping):
+            diffs.extend(config_differences(a, b, name + "."))
+        elif a != b:
+            diffs.append(f"{name}: {a!r} -> {b!r}")
+    return diffs
+
+
+__all__ = ["CHECKPOINT_NAME", "CheckpointError", "save_checkpoint", "load_checkpoint", "restore",
+           "config_differences", "RESUMABLE_KEYS"]
