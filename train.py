@@ -1,10 +1,34 @@
-"""Training entry point (`python train.py task=... algo=...`): not wired yet.
+"""Train an imitation-learning agent: `python train.py task=<Task-ID> algo=<name> [key=value ...]`.
 
-The Hydra experiment runner is issue #6. Until it lands this script says so and exits with an
-error instead of pretending to train; use `python -m loco_il.rollout` to exercise the environments.
+A Hydra app (configs in experiment_configs/: config.yaml + groups algo/, logger/, eval/, task/).
+`python train.py --help` lists the options, `python train.py --cfg job` prints the composed config,
+`python train.py -m algo=bc,sqil seed=0,1` sweeps (`hydra/launcher=joblib` runs the jobs in parallel,
+`hydra/launcher=submitit_local` / `submitit_slurm` as submitit jobs). The training loop lives in
+loco_il/experiment/runner.py; re-running a command continues its killed run from the last checkpoint.
 """
+import os
 import sys
+from pathlib import Path
+
+os.environ.setdefault("WANDB_SILENT", "true")
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+import hydra  # noqa: E402
+from omegaconf import DictConfig  # noqa: E402
+
+CONFIG_DIR = str(Path(__file__).resolve().parent / "experiment_configs")
+
+
+@hydra.main(config_path=CONFIG_DIR, config_name="config", version_base="1.3")
+def main(cfg: DictConfig) -> int:
+    from hydra.core.hydra_config import HydraConfig
+
+    from loco_il.experiment.runner import main_with_exit_codes
+    code = main_with_exit_codes(cfg, HydraConfig.get().runtime.output_dir)
+    if code and HydraConfig.get().mode.name == "RUN":
+        sys.exit(code)   # single runs: the exit status says what happened; sweeps go on with the next job
+    return code
+
 
 if __name__ == "__main__":
-    sys.exit("train.py is not implemented yet (issue #6: Hydra experiments). "
-             "Run `python -m loco_il.rollout --task Hopper.run.perfect` to try an environment.")
+    main()

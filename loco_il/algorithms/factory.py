@@ -20,11 +20,30 @@ from __future__ import annotations
 import inspect
 from typing import Any, Mapping
 
-from loco_il.algorithms.common.agent_base import ILAgent, get_algorithm
+from loco_il.algorithms.common.agent_base import ALGORITHMS, ILAgent
+from loco_il.algorithms.common.agent_base import get_algorithm as _get_registered
 from loco_il.algorithms.common.networks import GaussianPolicy
 
 #: default training budget when an algorithm config gives none
 DEFAULT_ENV_STEPS = 1_000_000
+
+
+def import_all() -> dict[str, type[ILAgent]]:
+    """Import every algorithm module of `loco_il.algorithms` (agents register themselves on import)."""
+    import importlib
+    import pkgutil
+
+    import loco_il.algorithms as pkg
+    for mod in pkgutil.iter_modules(pkg.__path__):
+        if not mod.ispkg and mod.name != "factory":
+            importlib.import_module(f"{pkg.__name__}.{mod.name}")
+    return ALGORITHMS
+
+
+def get_algorithm(name: str) -> type[ILAgent]:
+    """`agent_base.get_algorithm` after importing every algorithm module."""
+    import_all()
+    return _get_registered(name)
 
 
 def _plain(cfg: Any) -> dict:
@@ -110,4 +129,4 @@ def build_agent(name: str | None, env_info: Any, cfg: Mapping[str, Any], *, seed
     return cls(env_info, policy, device=device, seed=seed, **params)
 
 
-__all__ = ["build_agent", "build_policy", "default_budget", "steps_per_fit", "is_offline", "is_offpolicy"]
+__all__ = ["build_agent", "get_algorithm", "import_all", "build_policy", "default_budget", "steps_per_fit", "is_offline", "is_offpolicy"]

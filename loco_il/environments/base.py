@@ -32,6 +32,15 @@ _DIVERGENCE_WARNINGS = (int(mujoco.mjtWarning.mjWARN_BADQPOS), int(mujoco.mjtWar
 InitStateSampler = Callable[[np.random.Generator], tuple[np.ndarray, np.ndarray]]
 
 
+def name_unnamed_joints(spec: mujoco.MjSpec) -> None:
+    """Give every unnamed joint a stable name (`<body>_root` for a free joint) so poses and
+    observation entries can refer to it (Menagerie robots leave their free root joint unnamed)."""
+    for i, joint in enumerate(spec.joints):
+        if not joint.name:
+            owner = joint.parent.name or f"body{i}"
+            joint.name = f"{owner}_root" if joint.type == mujoco.mjtJoint.mjJNT_FREE else f"{owner}_joint{i}"
+
+
 def keyframe_pose(spec: mujoco.MjSpec, key_name: str | None) -> dict[str, np.ndarray]:
     """A keyframe's qpos split by joint name, read from the spec (survives joint removal)."""
     keys = list(spec.keys)
@@ -144,6 +153,7 @@ class LocoEnv(Environment):
         spec = self.body.load_spec()
         if self.body.spec_edit is not None:
             self.body.spec_edit(spec)
+        name_unnamed_joints(spec)
         self._init_pose = keyframe_pose(spec, self.body.init_keyframe)
         if self.body.joints_to_remove or self.body.actuators_to_remove or self._init_pose:
             remove_elements(spec, self.body.joints_to_remove, self.body.actuators_to_remove)

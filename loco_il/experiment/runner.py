@@ -1,0 +1,371 @@
+"""The training loop behind `train.py`: env + dataset + agent, chunked training, evaluation, checkpoints.
+
+`run(cfg, run_dir)` with the composed config of `experiment_configs/config.yaml`:
+
+1. checks that the algorithm can learn from the Task-ID's dataset type (`check_dataset_type`), before
+   anything slow happens;
+2. resumes from `<run_dir>/checkpoint.pt` when there is one (`resume: auto`, the default, or `true`); a
+   finished run only prints its evaluation; a run dir whose checkpoint has a different config is refused;
+3. builds the training env, the expert dataset (its `train` split; the `test` split is kept for the
+   trajectory-similarity metrics) and the agent (`loco_il.algorithms.factory.build_agent`);
+4. trains in chunks: online agents through mushroom-rl's `Core.learn(n_steps=chunk, n_steps_per_fit=...)`,
+   offline ones (BC) through `agent.pretrain(chunk)`; after each chunk it evaluates (every `eval.every`
+   steps), logs, and checkpoints (every `checkpoint_every` steps);
+5. ends with a final evaluation (`eval.final_episodes` episodes + trajectory similarity), `final_agent.pt`,
+   `eval.json`, and prints the result table.
+
+Steps are env steps for online agents and gradient steps for offline ones (BC). A chunk never straddles an
+evaluation or checkpoint point, and is a multiple of `n_steps_per_fit` (so no collected transition is
+dropped); `Core.learn` resets the env at the start of every chunk.
+"""
+from __future__ import annotations
+
+import math
+import shutil
+import sys
+import time
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+import torch
+
+from loco_il.experiment.checkpoint import (CHECKPOINT_NAME, CheckpointError, config_differences, load_checkpoint,
+                                           restore, save_checkpoint)
+from loco_il.experiment.logging import RunLogger, Stopwatch
+
+RUN_FILES = ("checkpoint.pt", "final_agent.pt", "eval.json", "log.csv", "log.jsonl")
+#: exit status of `train.py` when `stop_after_steps` stopped a run early (as if it had been killed)
+STOPPED_EXIT_CODE = 3
+
+
+class StopRequested(Exception):
+    """`stop_after_steps` was reached: the run stops like a killed one (no checkpoint of the last chunk)."""
+
+
+class ExperimentConfigError(ValueError):
+    """A config that cannot run (unknown algorithm or Task-ID, algorithm/dataset mismatch): one-line message."""
+
+
+def _plain(cfg: Any) -> dict:
+    try:
+        from omegaconf import DictConfig, OmegaConf
+        if isinstance(cfg, DictConfig):
+            return OmegaConf.to_container(cfg, resolve=True, throw_on_missing=True)
+    except ImportError:  # pragma: no cover
+        pass
+    return dict(cfg)
+
+
+def seed_everything(seed: int) -> None:
+    import random
+    random.seed(seed)
+    np.random.seed(seed % 2**32)
+    torch.manual_seed(seed)
+
+
+# ----------------------------------------------------------------------------- datasets
+def load_datasets(env: Any, dcfg: Mapping[str, Any]):
+    """(train, test) expert data of `env`'s Task-ID; test is None when the split leaves no test episodes."""
+    from loco_il.datasets import create_dataset
+    kwargs = {k: dcfg[k] for k in ("n_episodes", "expert_path") if dcfg.get(k) is not None}
+    kwargs.update({k: v for k, v in (dcfg.get("provider_kwargs") or {}).items()})
+    common = dict(n_trajectories=dcfg.get("n_trajectories"), portion=tuple(dcfg.get("portion") or (0.0, 0.75)),
+                  seed=int(dcfg.get("split_seed", 0)), generation_seed=int(dcfg.get("generation_seed", 0)),
+                  verbose=bool(dcfg.get("verbose", True)), **kwargs)
+    train = create_dataset(env, split="train", **common)
+    portion = common["portion"]
+    test = None
+    if portion[1] - portion[0] < 1.0:
+        try:
+            test = create_dataset(env, split="test", **{**common, "verbose": False})
+        except Exception:  # noqa: BLE001 - a pool too small for a test split: similarity uses train
+            test = None
+    return train, test
+
+
+def dataset_type_of(task_id: str) -> str:
+    from loco_il.environments.registry import parse_task_id
+    return parse_task_id(task_id).dataset
+
+
+# ----------------------------------------------------------------------------- the run
+class Runner:
+    def __init__(self, cfg: Any, run_dir: str | Path):
+        self.cfg = _plain(cfg)
+        self.run_dir = Path(run_dir)
+        self.run_dir.mkdir(parents=True, exist_ok=True)
+        c = self.cfg
+        self.task_id = str(c["task_id"])
+        self.algo_cfg = dict(c["algo"])
+        self.name = str(c.get("name") or self.algo_cfg["name"])
+        self.seed = int(c.get("seed", 0))
+        self.eval_cfg = dict(c.get("eval") or {})
+        self.log_cfg = dict(c.get("logger") or {})
+
+    # ------------------------------------------------------------------ budget and chunking
+    def budget(self) -> int:
+        from loco_il.algorithms import factory
+        if self.cfg.get("n_steps") is not None:
+            return int(self.cfg["n_steps"])
+        per_algo = self.cfg.get("budget_per_algo") or {}
+        if self.algo_cfg["name"] in per_algo:
+            return int(per_algo[self.algo_cfg["name"]])
+        return factory.default_budget(self.algo_cfg)
+
+    def _intervals(self, budget: int) -> tuple[int, int, int]:
+        """(eval every, checkpoint every, unit): unit = n_steps_per_fit (online) or 1 (offline)."""
+        from loco_il.algorithms import factory
+        unit = 1 if self.offline else factory.steps_per_fit(self.algo_cfg)
+        every = self.eval_cfg.get("every") or max(1, budget // 10)
+        ckpt = self.cfg.get("checkpoint_every") or every
+        round_up = lambda n: max(unit, int(math.ceil(int(n) / unit)) * unit)  # noqa: E731
+        return round_up(every), round_up(ckpt), unit
+
+    # ------------------------------------------------------------------ resume
+    def _prepare_dir(self) -> dict | None:
+        """The checkpoint to resume from (None: fresh start)."""
+        mode = str(self.cfg.get("resume", "auto")).lower()
+        ckpt_path = self.run_dir / CHECKPOINT_NAME
+        if mode in ("false", "0", "no", "never"):
+            for name in RUN_FILES:
+                (self.run_dir / name).unlink(missing_ok=True)
+            shutil.rmtree(self.run_dir / "wandb", ignore_errors=True)
+            return None
+        if not ckpt_path.is_file():
+            if mode in ("true", "1", "yes", "must"):
+                raise CheckpointError(f"resume=true but {ckpt_path} does not exist (nothing to resume); "
+                                      f"use resume=auto or resume=false")
+            for name in RUN_FILES:   # leftovers of a run killed before its first checkpoint
+                (self.run_dir / name).unlink(missing_ok=True)
+            return None
+        ckpt = load_checkpoint(ckpt_path)
+        diffs = config_differences(ckpt.get("config") or {}, self.cfg)
+        if diffs:
+            raise CheckpointError(
+                f"{self.run_dir} holds a run with a different configuration:\n  " + "\n  ".join(diffs) +
+                "\nTo continue that run, use its settings; to start over in this dir, add resume=false; "
+                "otherwise choose another dir (name=<label> or hydra.run.dir=<dir>).")
+        return ckpt
+
+    # ------------------------------------------------------------------ main
+    def run(self) -> dict:
+        from loco_il.algorithms import factory
+        from loco_il.algorithms.factory import get_algorithm
+        from loco_il.environments.registry import make
+
+        c = self.cfg
+        torch.set_num_threads(int(c.get("torch_threads") or 1))
+        try:   # fail before anything slow
+            cls = get_algorithm(self.algo_cfg["name"])
+            cls.check_dataset_type(dataset_type_of(self.task_id))
+        except (KeyError, ValueError) as exc:
+            raise ExperimentConfigError(str(exc.args[0]) if exc.args else str(exc)) from exc
+        self.offline = factory.is_offline(cls, self.algo_cfg)
+
+        ckpt = self._prepare_dir()
+        if ckpt is not None and ckpt.get("finished") and (self.run_dir / "eval.json").is_file():
+            import json
+            result = json.loads((self.run_dir / "eval.json").read_text())
+            print(f"[loco_il] {self.run_dir} already finished ({result.get('steps')} steps); final evaluation:")
+            self._print_table(result)
+            return result
+        self._write_config()
+
+        seed_everything(self.seed)
+        env = make(self.task_id, seed=self.seed)
+        eval_env = make(self.task_id, seed=self.seed + 1)
+        train, test = load_datasets(env, c.get("dataset") or {})
+        self.train_data, self.test_data = train, test
+        seed_everything(self.seed)   # the same initial weights whether the dataset was generated or cached
+        agent = factory.build_agent(self.algo_cfg["name"], env.info, self.algo_cfg, seed=self.seed,
+                                    device=str(c.get("device") or "cpu"))
+        agent.set_expert(train)
+
+        budget = self.budget()
+        eval_every, ckpt_every, unit = self._intervals(budget)
+        counters = {"step": 0, "env_steps": 0, "episodes": 0, "n_evals": 0}
+        wall = 0.0
+        wandb_id = None
+        if ckpt is not None:
+            restore(ckpt, agent=agent, env=env)
+            counters.update(ckpt["counters"])
+            wall, wandb_id = float(ckpt.get("wall_time", 0.0)), ckpt.get("wandb_id")
+        step = int(counters["step"])
+
+        logger = RunLogger(self.run_dir, c, wandb_cfg=self.log_cfg.get("wandb"),
+                           progress=self.log_cfg.get("progress", "auto"), total=budget, initial=step,
+                           wandb_id=wandb_id, run_name=f"{self.name}/{self.task_id}/seed{self.seed}",
+                           unit="update" if self.offline else "step")
+        if ckpt is not None:
+            logger.truncate(step)
+            logger.write(f"[loco_il] resuming {self.run_dir} at step {step}/{budget}")
+        logger.write(f"[loco_il] {self.name} on {self.task_id} (seed {self.seed}): {budget} "
+                     f"{'gradient' if self.offline else 'env'} steps, {train.n_trajectories} expert episodes "
+                     f"({train.n_transitions} transitions); run dir {self.run_dir}")
+        self.agent, self.env, self.eval_env, self.logger = agent, env, eval_env, logger
+        clock = Stopwatch(wall)
+        stop_after = c.get("stop_after_steps")
+        try:
+            window: dict[str, list] = {"returns": []}
+            core = None if self.offline else self._make_core(window, counters)
+            last_t, last_step = clock(), step
+            while step < budget:
+                nxt_eval = (step // eval_every + 1) * eval_every
+                nxt_ckpt = (step // ckpt_every + 1) * ckpt_every
+                n = min(nxt_eval, nxt_ckpt, budget) - step
+                fit_info = self._train_chunk(agent, core, n, unit)
+                step += n
+                counters["step"] = step
+                if not self.offline:
+                    counters["env_steps"] += n
+                if step % eval_every == 0 or step == budget:
+                    now = clock()
+                    row = self._evaluate_row(counters, now, (step - last_step) / max(now - last_t, 1e-9),
+                                             window, fit_info)
+                    last_t, last_step = now, step
+                    counters["n_evals"] += 1
+                    logger.log(row)
+                    logger.write(f"[loco_il] step {step}: eval return {row['eval_return_mean']:.2f} ± "
+                                 f"{row['eval_return_std']:.2f}" + (f", normalized {row['normalized_score']:.3f}"
+                                                                    if row.get("normalized_score") is not None
+                                                                    else ""))
+                if step % ckpt_every == 0 or step == budget:
+                    save_checkpoint(self.run_dir / CHECKPOINT_NAME, agent=agent, env=env, counters=counters,
+                                    wall_time=clock(), config=c, wandb_id=logger.wandb_id)
+                if stop_after is not None and step >= int(stop_after) and step < budget:
+                    raise StopRequested(f"stop_after_steps={stop_after}: stopped at step {step}/{budget} "
+                                        f"(re-run the same command to resume)")
+            result = self._final(agent, eval_env, counters, clock())
+        finally:
+            logger.close()
+            env.stop()
+            eval_env.stop()
+        save_checkpoint(self.run_dir / CHECKPOINT_NAME, agent=agent, env=env, counters=counters,
+                        wall_time=clock(), config=c, wandb_id=logger.wandb_id, finished=True)
+        self._print_table(result)
+        return result
+
+    # ------------------------------------------------------------------ pieces
+    def _make_core(self, window: dict, counters: dict):
+        from mushroom_rl.core import Core
+        state = {"ret": 0.0}
+        logger = self.logger
+
+        def on_step(samples):
+            for s in samples:
+                state["ret"] += float(s[2])
+                if s[-1]:
+                    window["returns"].append(state["ret"])
+                    counters["episodes"] += 1
+                    state["ret"] = 0.0
+            on_step.k += 1
+            if on_step.k >= 200:
+                logger.progress(on_step.k, train_return=np.mean(window["returns"][-10:]) if window["returns"] else None)
+                on_step.k = 0
+
+        on_step.k = 0
+        core = Core(self.agent, self.env, callback_step=on_step)
+        self._on_step, self._step_state = on_step, state
+        return core
+
+    def _train_chunk(self, agent, core, n: int, unit: int) -> dict:
+        if self.offline:
+            done, loss = 0, None
+            while done < n:
+                k = min(100, n - done)
+                loss = agent.pretrain(k)
+                done += k
+                self.logger.progress(k, loss=loss)
+            return {"bc_loss": loss}
+        self._step_state["ret"] = 0.0            # Core.learn starts a fresh episode
+        core.learn(n_steps=n, n_steps_per_fit=unit, quiet=True)
+        self.logger.progress(self._on_step.k)
+        self._on_step.k = 0
+        info = getattr(agent, "last_fit_info", None) or getattr(agent, "last_info", None) or {}
+        return dict(info)
+
+    def _evaluate_row(self, counters: dict, wall: float, sps: float, window: dict, fit_info: dict) -> dict:
+        from loco_il.evaluation import evaluate_agent, normalized
+        ev = self.eval_cfg
+        res = evaluate_agent(self.agent, self.eval_env, int(ev.get("episodes", 5)), int(ev.get("seed", 1000)),
+                             bool(ev.get("deterministic", True)))
+        score, _, _ = normalized(self.task_id, res["return_mean"])
+        updates = getattr(self.agent, "n_updates", None)
+        if updates is None:
+            updates = getattr(self.agent, "n_fits", None)
+        returns = window["returns"]
+        row = {"step": counters["step"], "env_steps": counters["env_steps"], "updates": updates,
+               "episodes": counters["episodes"], "wall_time": round(wall, 3), "steps_per_s": round(sps, 2),
+               "train_return": float(np.mean(returns)) if returns else None,
+               "eval_return_mean": res["return_mean"], "eval_return_std": res["return_std"],
+               "eval_episodes": res["episodes"], "eval_length_mean": res["length_mean"], "normalized_score": score}
+        row.update({f"fit/{k}": v for k, v in fit_info.items()})
+        window["returns"] = []
+        self.logger.progress(0, eval_return=res["return_mean"], steps_per_s=sps)
+        return row
+
+    def _final(self, agent, eval_env, counters: dict, wall: float) -> dict:
+        from loco_il.datasets.providers.expert import task_key
+        from loco_il.evaluation import evaluate_agent, normalized, trajectory_similarity, write_json
+        ev = self.eval_cfg
+        sim_on = bool(ev.get("similarity", True))
+        res = evaluate_agent(agent, eval_env, int(ev.get("final_episodes", 10)), int(ev.get("seed", 1000)),
+                             bool(ev.get("deterministic", True)), collect_obs=sim_on)
+        score, note, base = normalized(self.task_id, res["return_mean"])
+        env = self.env
+        result = {"task_id": env.task_id,
+                  "task": task_key(env.task_id) + (".pomdp" if env.task_id.endswith(".pomdp") else ""),
+                  "dataset_type": env.dataset_type, "algorithm": self.algo_cfg["name"], "name": self.name,
+                  "seed": self.seed, "steps": counters["step"], "env_steps": counters["env_steps"],
+                  "step_unit": "gradient steps" if self.offline else "env steps",
+                  "wall_time": round(wall, 3), **{k: v for k, v in res.items() if k != "obs"},
+                  "normalized_score": score, "normalized_score_note": note, "baseline": base,
+                  "expert_dataset_return": self.train_data.info.get("expert_return_mean"),
+                  "n_expert_trajectories": self.train_data.n_trajectories,
+                  "created": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
+        if sim_on:
+            ref = self.test_data if self.test_data is not None and self.test_data.n_transitions else self.train_data
+            result["similarity"] = trajectory_similarity(
+                res["obs"], ref.obs, self.train_data.obs if ref is not self.train_data else None,
+                int(ev.get("max_points", 1000)), seed=self.seed)
+            result["similarity"]["reference"] = "test split" if ref is not self.train_data else "train split"
+        agent.save(self.run_dir / "final_agent.pt")
+        write_json(self.run_dir / "eval.json", result)
+        self.logger.summary({"final_return_mean": result["return_mean"], "final_return_std": result["return_std"],
+                             "final_normalized_score": score})
+        return result
+
+    def _write_config(self) -> None:
+        import yaml
+
+        from loco_il.utils.atomic import atomic_open
+        with atomic_open(self.run_dir / "config.yaml", "w") as fh:
+            yaml.safe_dump(self.cfg, fh, sort_keys=False)
+
+    @staticmethod
+    def _print_table(result: Mapping[str, Any]) -> None:
+        from loco_il.evaluation import format_eval_table
+        print("\nFinal evaluation\n" + format_eval_table([result]), flush=True)
+
+
+def run(cfg: Any, run_dir: str | Path) -> dict:
+    """Train (or resume, or report a finished run in) `run_dir`; returns the final evaluation."""
+    return Runner(cfg, run_dir).run()
+
+
+def main_with_exit_codes(cfg: Any, run_dir: str | Path) -> int:
+    """`run` for command-line use: clean one-line messages and exit codes for expected failures."""
+    from loco_il.datasets.trajectory import DatasetError
+    try:
+        run(cfg, run_dir)
+    except StopRequested as exc:
+        print(f"[loco_il] {exc}", file=sys.stderr, flush=True)
+        return STOPPED_EXIT_CODE
+    except (CheckpointError, DatasetError, ExperimentConfigError) as exc:
+        print(f"[loco_il] error: {exc}", file=sys.stderr, flush=True)
+        return 2
+    return 0
+
+
+__all__ = ["run", "Runner", "load_datasets", "StopRequested", "ExperimentConfigError", "STOPPED_EXIT_CODE", "main_with_exit_codes"]
