@@ -205,8 +205,8 @@ class PPO:
         orthogonal_init(self.value)
         self.policy.to(self.device)
         self.value.to(self.device)
-        self.pi_opt = torch.optim.Adam(self.policy.parameters(), lr=cfg.lr, eps=1e-5)
-        self.v_opt = torch.optim.Adam(self.value.parameters(), lr=cfg.lr, eps=1e-5)
+        self.pi_opt = torch.optim.Adam(self.policy.parameters(), lr=cfg.lr, eps=1e-5, foreach=True)
+        self.v_opt = torch.optim.Adam(self.value.parameters(), lr=cfg.lr, eps=1e-5, foreach=True)
         self.obs_rms = RunningMeanStd((obs_dim,))
         self.ret_rms = RunningMeanStd(())
         if self.device.type == "cpu":

@@ -55,8 +55,8 @@ class ControllerParams:
     speed: float = 0.5                  # m/s, commanded planar speed
     body_height: float | None = None    # m, trunk-origin height; None: the standing height at reset
     gait: GaitParams = field(default_factory=GaitParams)
-    kp: float = 60.0                    # torque-motor PD gains (Nm/rad, Nm s/rad)
-    kd: float = 1.5
+    kp: float = 150.0                   # torque-motor PD gains (Nm/rad, Nm s/rad)
+    kd: float = 3.0
     raibert_gain: float = 0.08          # s: touchdown shift per m/s of velocity error
     yaw_gain: float = 2.0               # 1/s
     max_yaw_rate: float = 1.0           # rad/s
@@ -64,6 +64,8 @@ class ControllerParams:
     max_cross_speed: float = 0.15       # m/s
     ramp_time: float = 0.5              # s, speed ramp from standing
     velocity_filter: float = 0.05       # s, time constant of the measured-velocity low-pass
+    velocity_integral_gain: float = 2.0  # 1/s: integral of the velocity error added to the stance sweep
+    max_velocity_integral: float = 0.3   # m/s
     stance_width: float = 0.0           # m, extra lateral foot offset (outwards)
     gravity_ff: bool = True
     level_frame: bool = False
@@ -98,8 +100,7 @@ class TrotController:
         self.ctrl_lo = np.where(limited, m.actuator_ctrlrange[self.act, 0], -np.inf)
         self.ctrl_hi = np.where(limited, m.actuator_ctrlrange[self.act, 1], np.inf)
         self.foot_geoms = np.array([leg.foot_geom for leg in self.legs])
-        floor = [g for g in range(m.ngeom) if m.geom_bodyid[g] == 0]
-        self.floor_geoms = set(floor)
+        self._floor = np.array([g for g in range(m.ngeom) if m.geom_bodyid[g] == 0])
         self._vel = np.zeros(6)
         self.reset(0.0)
 
@@ -125,15 +126,13 @@ class TrotController:
 
     def foot_contacts(self) -> np.ndarray:
         """Which feet touch the floor (4,) bool."""
-        touching = np.zeros(4, dtype=bool)
-        index = {int(g): i for i, g in enumerate(self.foot_geoms)}
-        for c in self.data.contact[:self.data.ncon]:
-            g1, g2 = int(c.geom1), int(c.geom2)
-            if g1 in index and g2 in self.floor_geoms:
-                touching[index[g1]] = True
-            elif g2 in index and g1 in self.floor_geoms:
-                touching[index[g2]] = True
-        return touching
+        ncon = self.data.ncon
+        if ncon == 0:
+            return np.zeros(4, dtype=bool)
+        geom = self.data.contact.geom[:ncon]
+        floor1, floor2 = np.isin(geom[:, 0], self._floor), np.isin(geom[:, 1], self._floor)
+        others = np.concatenate([geom[floor1, 1], geom[floor2, 0]])
+        return np.isin(self.foot_geoms, others)
 
     # ------------------------------------------------------------------ episode
     def reset(self, direction: float, rng: np.random.Generator | None = None,
@@ -161,6 +160,7 @@ class TrotController:
         self.lift_off = self.p_xy.copy()
         self.was_stance = self.cpg.in_stance()
         self.v_filt = np.zeros(2)
+        self.v_int = np.zeros(2)
         self.q_ref = self.data.qpos[self.q_adr].copy()
         self.q_prev = self.q_ref.copy()
         self.tau_ff = np.zeros(12)
@@ -194,6 +194,13 @@ class TrotController:
         v_world, yaw_rate = self._command(psi)
         self.v_cmd_world, self.yaw_rate_cmd = v_world, yaw_rate
         v_cmd = (R_yaw.T @ np.array([v_world[0], v_world[1], 0.0]))[:2]
+        # integral of the velocity error, kept in the world frame (it survives turning)
+        err_world = v_world - (R_yaw @ np.array([self.v_filt[0], self.v_filt[1], 0.0]))[:2]
+        self.v_int = self.v_int + p.velocity_integral_gain * err_world * dt
+        norm = np.linalg.norm(self.v_int)
+        if norm > p.max_velocity_integral:
+            self.v_int *= p.max_velocity_integral / norm
+        v_sweep = v_cmd + (R_yaw.T @ np.array([self.v_int[0], self.v_int[1], 0.0]))[:2]
 
         self.cpg.step(dt)
         stance = self.cpg.in_stance()
@@ -205,13 +212,13 @@ class TrotController:
         n_stance = max(int(stance.sum()), 1)
         for i, leg in enumerate(self.legs):
             if stance[i]:
-                self.p_xy[i] = self.p_xy[i] + stance_velocity(self.p_xy[i], v_cmd, yaw_rate) * dt
+                self.p_xy[i] = self.p_xy[i] + stance_velocity(self.p_xy[i], v_sweep, yaw_rate) * dt
                 lift = 0.0
             else:
                 if self.was_stance[i]:
                     self.lift_off[i] = self.p_xy[i].copy()
                 nom = self.nominal_xy(leg)
-                touchdown = (nom + v_cmd * t_st / 2 + p.raibert_gain * (self.v_filt - v_cmd)
+                touchdown = (nom + v_sweep * t_st / 2 + p.raibert_gain * (self.v_filt - v_cmd)
                              + yaw_rate * np.array([-nom[1], nom[0]]) * t_st / 2)
                 self.p_xy[i], lift = swing_position(progress[i], self.lift_off[i], touchdown, p.gait.swing_height)
             foot_h = np.array([self.p_xy[i, 0], self.p_xy[i, 1], leg.foot_radius - self.body_height + lift])

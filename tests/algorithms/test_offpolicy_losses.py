@@ -1,0 +1,261 @@
+"""Unit tests of the off-policy IL losses and of the SAC / agent machinery, on hand-computed numbers."""
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+import torch
+from mushroom_rl.core import MDPInfo
+from mushroom_rl.utils.spaces import Box
+from torch import nn
+
+from loco_il.algorithms.common.agent_base import ALGORITHMS, get_algorithm
+from loco_il.algorithms.common.networks import GaussianPolicy
+from loco_il.algorithms.common.replay import TransitionBuffer
+from loco_il.algorithms.common.sac import actor_loss, polyak_update, temperature_loss
+from loco_il.algorithms.iq_learn import IQLearn, iq_critic_loss
+from loco_il.algorithms.lsiq import LSIQ, LSIQfO, lsiq_bounds, lsiq_critic_loss, lsiq_targets
+from loco_il.algorithms.sqil import SQIL, sqil_critic_loss, sqil_rewards
+
+torch.set_num_threads(1)
+T = lambda *x: torch.tensor(x, dtype=torch.float32)  # noqa: E731
+
+OBS_DIM, ACT_DIM = 3, 2
+
+
+# ---------------------------------------------------------------------- IQ-Learn
+def test_iq_loss_hand_computed():
+    # one expert sample (index 0), one agent sample whose s' is absorbing; gamma = 0.9, chi2 coef 0.5
+    q, v, v_next, absorbing = T(2.0, 1.0), T(1.5, 0.5), T(1.0, 2.0), T(0.0, 1.0)
+    # gamma V(s') masked: [0.9, 0]; r = q - that = [1.1, 1.0]
+    # -E_E[r] = -1.1;  E_mix[V(s) - gamma V(s')] = mean(0.6, 0.5) = 0.55;  0.5 * mean(1.21, 1.0) = 0.5525
+    loss, info = iq_critic_loss(q, v, v_next, absorbing, n_expert=1, gamma=0.9, chi2_coef=0.5)
+    assert loss.item() == pytest.approx(-1.1 + 0.55 + 0.5525, abs=1e-6)
+    assert info["reward_expert"].item() == pytest.approx(1.1)
+    assert info["reward_policy"].item() == pytest.approx(1.0)
+    # chi^2 on expert samples only: 0.5 * 1.21
+    loss_e, _ = iq_critic_loss(q, v, v_next, absorbing, 1, 0.9, 0.5, regularize_policy=False)
+    assert loss_e.item() == pytest.approx(-1.1 + 0.55 + 0.605, abs=1e-6)
+    # two identical heads: the head losses are summed
+    loss2, _ = iq_critic_loss(torch.stack([q, q]), torch.stack([v, v]), torch.stack([v_next, v_next]),
+                              absorbing, 1, 0.9, 0.5)
+    assert loss2.item() == pytest.approx(2 * loss.item(), abs=1e-6)
+
+
+def test_iq_loss_gradient_raises_expert_q():
+    q = T(0.0, 0.0).requires_grad_()
+    loss, _ = iq_critic_loss(q, T(0.0, 0.0), T(0.0, 0.0), T(0.0, 0.0), 1, 0.99)
+    loss.backward()
+    assert q.grad[0] < 0  # descending the loss increases Q on the expert sample
+
+
+# ---------------------------------------------------------------------- LS-IQ
+def test_lsiq_bounds():
+    r_max, r_min, q_max, q_min = lsiq_bounds(reg_coef=0.5, mix=0.5, gamma=0.99)
+    assert (r_max, r_min) == (pytest.approx(2.0), pytest.approx(-2.0))
+    assert q_max == pytest.approx(1.0 / (0.5 * (1 - 0.99)))  # Q_max = 1 / (c (1 - gamma)) = 200
+    assert q_min == pytest.approx(-q_max)
+    r_max, r_min, _, _ = lsiq_bounds(reg_coef=1.0, mix=0.25, gamma=0.9)
+    assert (r_max, r_min) == (pytest.approx(2.0), pytest.approx(-1.0 / 1.5))
+
+
+def test_lsiq_target_clipping_and_absorbing():
+    # gamma 0.9, c = a = 0.5: Q_max = 20, Q_min = -20; samples 0,1 expert, 2,3 agent; 1 and 3 absorbing
+    v_next, absorbing = T(30.0, 5.0, -50.0, 3.0), T(0.0, 1.0, 0.0, 1.0)
+    y = lsiq_targets(v_next, absorbing, n_expert=2, gamma=0.9)
+    assert torch.allclose(y, T(0.9 * 20, 0.9 * 20, -0.9 * 20, -0.9 * 20))
+    y0 = lsiq_targets(v_next, absorbing, n_expert=2, gamma=0.9, treat_absorbing=False)
+    assert torch.allclose(y0, T(18.0, 0.0, -18.0, 0.0))
+    # inside the bounds nothing is clipped
+    y1 = lsiq_targets(T(1.0, -2.0), T(0.0, 0.0), n_expert=1, gamma=0.9)
+    assert torch.allclose(y1, T(0.9, -1.8))
+
+
+def test_lsiq_loss_hand_computed():
+    q = T(19.0, 21.0, -19.0, -15.0)
+    v_next, absorbing = T(30.0, 5.0, -50.0, 3.0), T(0.0, 1.0, 0.0, 1.0)
+    # targets [18, 18, -18, -18] -> r = [1, 3, -1, 3]; r_max = 2, r_min = -2, weights c*a = c*(1-a) = 0.25
+    # 0.25 * mean(1, 1) + 0.25 * mean(1, 25) = 0.25 + 3.25
+    loss, info = lsiq_critic_loss(q, v_next, absorbing, n_expert=2, gamma=0.9)
+    assert loss.item() == pytest.approx(3.5, abs=1e-5)
+    assert info["reward_expert"].item() == pytest.approx(2.0)
+    # IQ-Learn's V(s_A) = 0 instead: r = [1, 21, -1, -15] -> 0.25 * mean(1, 361) + 0.25 * mean(1, 169)
+    loss0, _ = lsiq_critic_loss(q, v_next, absorbing, 2, 0.9, treat_absorbing=False)
+    assert loss0.item() == pytest.approx(45.25 + 21.25, abs=1e-4)
+    # optional value term E_pi[V(s) - Q(s, a)] = mean(-17 + 19, -14 + 15) = 1.5
+    loss_v, _ = lsiq_critic_loss(q, v_next, absorbing, 2, 0.9, v=T(0.0, 0.0, -17.0, -14.0))
+    assert loss_v.item() == pytest.approx(3.5 + 1.5, abs=1e-5)
+
+
+def test_lsiq_loss_minimum_is_at_reward_bounds():
+    q = T(0.0, 0.0).requires_grad_()
+    opt = torch.optim.SGD([q], lr=1.0)
+    for _ in range(200):
+        loss, _ = lsiq_critic_loss(q, T(0.0, 0.0), T(0.0, 0.0), 1, 0.9)
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+    assert torch.allclose(q.detach(), T(2.0, -2.0), atol=1e-4)  # Q = r_max / r_min when V(s') = 0
+
+
+# ---------------------------------------------------------------------- SQIL
+def test_sqil_rewards_and_loss():
+    assert torch.equal(sqil_rewards(2, 3), T(1.0, 1.0, 0.0, 0.0, 0.0))
+    # targets r + gamma (1 - absorbing) V(s') = [1 + 0.5 * 2, 0] = [2, 0]; errors [-1, 0]
+    loss, _ = sqil_critic_loss(T(1.0, 0.0), T(1.0, 0.0), T(2.0, 5.0), T(0.0, 1.0), gamma=0.5)
+    assert loss.item() == pytest.approx(0.5)
+
+
+# ---------------------------------------------------------------------- SAC pieces
+def test_actor_loss_hand_computed():
+    assert actor_loss(torch.tensor(0.5), T(1.0, -1.0), T(2.0, 3.0)).item() == pytest.approx(-2.5)
+
+
+@pytest.mark.parametrize("log_prob, alpha_goes_up", [(3.0, True), (-3.0, False)])
+def test_temperature_update_sign(log_prob, alpha_goes_up):
+    # target entropy -1: log pi = 3 (entropy -3, below the target) must raise alpha,
+    # log pi = -3 (entropy 3, above it) must lower it
+    log_alpha = torch.zeros((), requires_grad=True)
+    opt = torch.optim.SGD([log_alpha], lr=0.1)
+    loss = temperature_loss(log_alpha, torch.full((4,), log_prob), target_entropy=-1.0)
+    opt.zero_grad()
+    loss.backward()
+    opt.step()
+    assert (log_alpha.item() > 0) == alpha_goes_up
+
+
+def test_polyak_update():
+    src, tgt = nn.Linear(2, 2), nn.Linear(2, 2)
+    before = [p.detach().clone() for p in tgt.parameters()]
+    polyak_update(tgt, src, tau=0.1)
+    for b, s, t in zip(before, src.parameters(), tgt.parameters()):
+        assert torch.allclose(t, 0.9 * b + 0.1 * s)
+
+
+# ---------------------------------------------------------------------- agents
+def _mdp_info():
+    return MDPInfo(Box(-np.ones(OBS_DIM), np.ones(OBS_DIM)), Box(-np.ones(ACT_DIM), np.ones(ACT_DIM)), 0.99, 100)
+
+
+def _expert(n=50, seed=0, with_actions=True):
+    rng = np.random.default_rng(seed)
+    obs = rng.normal(size=(n, OBS_DIM))
+    return SimpleNamespace(obs=obs, next_obs=obs + 0.1, actions=rng.uniform(-1, 1, (n, ACT_DIM)) if with_actions else None,
+                           absorbing=np.zeros(n, bool), last=np.r_[np.zeros(n - 1, bool), True])
+
+
+def _dataset(n=64, seed=1):
+    rng = np.random.default_rng(seed)
+    return [(rng.normal(size=OBS_DIM), rng.uniform(-1, 1, ACT_DIM), 0.0, rng.normal(size=OBS_DIM),
+             bool(i % 10 == 9), bool(i % 10 == 9)) for i in range(n)]
+
+
+def _agent(cls, seed=0, **kw):
+    torch.manual_seed(seed)
+    agent = cls(_mdp_info(), GaussianPolicy(OBS_DIM, ACT_DIM, (16,)), critic_hidden=(16,), batch_size=8,
+                expert_batch_size=8, initial_replay_size=16, replay_capacity=1000, seed=seed, **kw)
+    agent.set_expert(_expert(with_actions=cls is not LSIQfO))
+    return agent
+
+
+def test_registry_and_dataset_types():
+    assert {"iqlearn", "lsiq", "lsiqfo", "sqil"} <= set(ALGORITHMS)
+    assert get_algorithm("LSIQ") is LSIQ
+    with pytest.raises(ValueError, match="LSIQ-fO"):
+        IQLearn.check_dataset_type("real")
+    for cls in (SQIL, LSIQ):
+        with pytest.raises(ValueError, match="LSIQ-fO"):
+            cls.check_dataset_type("real")
+    for cls in (IQLearn, LSIQ, LSIQfO, SQIL):
+        cls.check_dataset_type("perfect")
+        cls.check_dataset_type("preference")
+    LSIQfO.check_dataset_type("real")
+    with pytest.raises(ValueError, match="unknown"):
+        SQIL.check_dataset_type("mocap")
+
+
+def test_expert_without_actions_rejected_unless_state_only():
+    with pytest.raises(ValueError, match="actions"):
+        _agent(IQLearn).set_expert(_expert(with_actions=False))
+    _agent(LSIQfO).set_expert(_expert(with_actions=False))
+
+
+def test_sqil_agent_relabels_expert_1_agent_0():
+    agent = _agent(SQIL)
+    agent.replay.add(*(np.asarray(x) for x in (np.zeros((4, OBS_DIM)), np.zeros((4, OBS_DIM)))), np.zeros(4),
+                     np.zeros((4, ACT_DIM)))
+    expert = agent.expert_buffer.sample(5, agent.rng)
+    policy = agent.replay.sample(7, agent.rng)
+    torch.manual_seed(3)
+    loss, _ = agent.critic_loss(expert, policy)
+    # recompute by hand with the same policy noise: rewards 1 for the 5 expert, 0 for the 7 agent samples
+    torch.manual_seed(3)
+    nxt = torch.cat([expert["next_obs"], policy["next_obs"]])
+    a, logp = agent.policy_module.sample(nxt)
+    t1, t2 = agent.sac.critic_target(nxt, a)
+    y = torch.cat([torch.ones(5), torch.zeros(7)]) + 0.99 * (torch.minimum(t1, t2) - agent.sac.alpha * logp)
+    q1, q2 = agent.sac.critic(torch.cat([expert["obs"], policy["obs"]]), torch.cat([expert["actions"], policy["actions"]]))
+    assert loss.item() == pytest.approx(((q1 - y) ** 2).mean().item() + ((q2 - y) ** 2).mean().item(), rel=1e-5)
+
+
+def test_replay_ring_buffer_keeps_newest():
+    buf = TransitionBuffer(3, 1, 1)
+    for i in range(5):
+        buf.add(np.array([[i]]), np.array([[i + 1]]), np.array([0.0]), np.array([[-i]]))
+    assert len(buf) == 3
+    assert sorted(buf.obs[:, 0].tolist()) == [2.0, 3.0, 4.0]
+    batch = buf.sample(100, np.random.default_rng(0))
+    assert torch.equal(batch["next_obs"], batch["obs"] + 1) and torch.equal(batch["actions"], -batch["obs"])
+
+
+@pytest.mark.parametrize("cls", [IQLearn, LSIQ, LSIQfO, SQIL])
+def test_state_dict_round_trip(cls, tmp_path):
+    agent = _agent(cls)
+    agent.fit(_dataset()[:10])                 # replay below initial_replay_size (16): no update
+    assert agent.n_updates == 0 and agent.n_transitions == 10
+    agent.fit(_dataset(seed=4))                # 64 more transitions: one update each
+    assert agent.n_updates == 64
+    path = tmp_path / "agent.pt"
+    agent.save(path)
+    replay_state = agent.replay.state_dict()   # the replay memory is not part of the checkpoint
+    probe = np.random.default_rng(5).normal(size=(6, OBS_DIM))
+    acts_before = [agent.draw_action(s) for s in probe]
+    params_before = {k: v.clone() for k, v in agent.sac.critic.state_dict().items()}
+
+    restored = cls.load(path)                  # a new agent built from the file
+    assert type(restored) is cls and restored.n_updates == agent.n_updates
+    np.testing.assert_array_equal([restored.draw_action(s) for s in probe], acts_before)
+    for k, v in restored.sac.critic.state_dict().items():
+        assert torch.equal(v, params_before[k])
+    assert restored.sac.log_alpha.item() == agent.sac.log_alpha.item()
+
+    # both continue identically (optimizer moments, counters, RNG streams restored)
+    restored.set_expert(_expert(with_actions=cls is not LSIQfO))
+    restored.replay.load_state_dict(replay_state)
+    global_rng = torch.get_rng_state()
+    agent.fit(_dataset(seed=2))
+    torch.set_rng_state(global_rng)            # the global torch RNG is per process; emulate a fresh one
+    restored.fit(_dataset(seed=2))
+    for (k, v), v2 in zip(agent.sac.critic.state_dict().items(), restored.sac.critic.state_dict().values()):
+        assert torch.equal(v, v2), k
+    assert any(not torch.equal(v, params_before[k]) for k, v in agent.sac.critic.state_dict().items())
+
+    agent.load(path)                           # restore in place
+    for k, v in agent.sac.critic.state_dict().items():
+        assert torch.equal(v, params_before[k])
+    for p, q in zip(agent.policy_module.parameters(), restored.policy_module.parameters()):
+        assert p.shape == q.shape
+    np.testing.assert_array_equal([agent.draw_action(s) for s in probe], acts_before)
+
+
+def test_deterministic_action_is_squashed_mean():
+    agent = _agent(SQIL)
+    agent.deterministic = True
+    s = np.ones(OBS_DIM)
+    a1, a2 = agent.draw_action(s), agent.draw_action(s)
+    np.testing.assert_array_equal(a1, a2)
+    expected = agent.policy_module.deterministic(torch.ones(1, OBS_DIM, dtype=torch.float32))[0].detach().numpy()
+    np.testing.assert_allclose(a1, expected, rtol=1e-6)
+    agent.deterministic = False
+    assert np.all(np.abs(agent.draw_action(s)) <= 1.0)
