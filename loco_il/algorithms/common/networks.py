@@ -60,7 +60,7 @@ class GaussianPolicy(nn.Module):
 
     def distribution(self, obs: torch.Tensor) -> torch.distributions.Normal:
         mean, log_std = self._mean_log_std(obs)
-        return torch.distributions.Normal(mean, log_std.exp())
+        return torch.distributions.Normal(mean, log_std.exp(), validate_args=False)  # no per-call checks on the hot path
 
     def sample(self, obs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """Reparameterized sample and its log-probability (summed over action dims)."""

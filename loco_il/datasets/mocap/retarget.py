@@ -109,6 +109,7 @@ class RetargetOptions:
     posture: float = 2e-4             # mu (pull of the joints toward the init pose)
     max_step: float = 0.25            # largest |dq| entry per iteration (rad or m)
     contact_weight: float = 3.0       # weight multiplier of the feet during contacts
+    flat_weight: float = 4.0          # weight of the foot-roll term (sole edges level)
     pin_contacts: bool = True         # pin the feet during contacts (foot-sliding cleanup)
     fix_ground: bool = True           # shift the root so feet touch and never penetrate the ground
     align: bool = True                # turn the source to head along +x, starting at x = y = 0
@@ -573,6 +574,7 @@ class RobotKinematics:
         self.offsets = np.asarray(offsets, dtype=float)
         self.index = {k: i for i, k in enumerate(self.names)}
         self.rest = {k: p for k, p in zip(self.names, self.points())}
+        self.flat = self._lateral_sole_points()
 
         # ---- joints: limits, root, equality couplings
         self._setup_joints()
@@ -597,6 +599,27 @@ class RobotKinematics:
         w = d.xpos[b] + np.einsum("nij,nj->ni", d.xmat[b].reshape(-1, 3, 3), p)
         w[:, 2] -= r
         return w
+
+    def _lateral_sole_points(self) -> dict:
+        """Per foot, two points at the sole's inner and outer edges (same height in the init pose),
+        attached to the foot body: their height difference measures the foot's roll."""
+        d = self.data
+        out = {}
+        for s in self.sole:
+            w = self._sole_world(s)
+            if np.ptp(w[:, 1]) < 0.02:                   # too narrow (a sphere or a blade): no roll term
+                continue
+            toe = self.index.get(f"{s}_toe")
+            if toe is not None:
+                body = int(self.bodies[toe])
+            else:
+                vals, counts = np.unique(self.sole[s][0], return_counts=True)
+                body = int(vals[np.argmax(counts)])
+            xmat = d.xmat[body].reshape(3, 3)
+            xc, zc = w[:, 0].mean(), w[:, 2].min()
+            pts = [np.array([xc, y, zc]) for y in (w[:, 1].min(), w[:, 1].max())]
+            out[s] = (body, *(xmat.T @ (p - d.xpos[body]) for p in pts))
+        return out
 
     # ------------------------------------------------------------------ kinematics
     def forward(self, qpos: np.ndarray) -> None:
@@ -744,12 +767,17 @@ class RobotKinematics:
         return q
 
     def solve(self, q: np.ndarray, targets: np.ndarray, weights: np.ndarray, iterations: int,
-              opts: RetargetOptions, idx: np.ndarray) -> tuple[np.ndarray, float]:
-        """Damped least-squares IK for one frame from ``q``; returns (q, mean keypoint error)."""
+              opts: RetargetOptions, idx: np.ndarray, flat_weights: Optional[dict] = None) -> tuple[np.ndarray, float]:
+        """Damped least-squares IK for one frame from ``q``; returns (q, mean keypoint error).
+
+        ``flat_weights``: ``{foot: weight}`` of the foot-roll rows (height difference of the sole's
+        inner and outer edges, target 0)."""
         m, d = self.model, self.data
         k = len(idx)
-        J = np.zeros((3 * k, m.nv))
-        sw = np.repeat(np.sqrt(weights), 3)
+        flats = [(self.flat[s], w) for s, w in (flat_weights or {}).items() if s in self.flat and w > 0]
+        J = np.zeros((3 * k + len(flats), m.nv))
+        sw = np.concatenate([np.repeat(np.sqrt(weights), 3), [np.sqrt(w) for _, w in flats]])
+        jf = np.zeros((3, m.nv))
         n = len(self.free_dofs)
         eye = np.eye(n)
         q = q.copy()
@@ -761,6 +789,17 @@ class RobotKinematics:
             for i, ki in enumerate(idx):
                 mujoco.mj_jac(m, d, J[3 * i:3 * i + 3], None, pts[i], int(self.bodies[ki]))
             err = (targets - pts).ravel()
+            if flats:
+                rows = []
+                for f, ((body, p_in, p_out), _) in enumerate(flats):
+                    xm = d.xmat[body].reshape(3, 3)
+                    a, b = d.xpos[body] + xm @ p_in, d.xpos[body] + xm @ p_out
+                    mujoco.mj_jac(m, d, jf, None, a, body)
+                    row = jf[2].copy()
+                    mujoco.mj_jac(m, d, jf, None, b, body)
+                    J[3 * k + f] = row - jf[2]
+                    rows.append(-(a[2] - b[2]))
+                err = np.concatenate([err, rows])
             T = self._reduction(q)
             A = (J @ T) * sw[:, None]
             b = err * sw
@@ -871,7 +910,10 @@ def retarget_keypoints(env: Any, keypoints: Mapping[str, np.ndarray], fps: float
     targets = build_targets(src, kin.rest, scale, opts.mode,
                             stance={"l": contacts[:, 0], "r": contacts[:, 1]})
     if opts.pin_contacts:
-        targets, _ = _pin_feet(targets, contacts, kin.rest, kin.ground_rest, blend=max(1, int(round(0.04 * env_fps))))
+        targets, ground = _pin_feet(targets, contacts, kin.rest, kin.ground_rest,
+                                    blend=max(1, int(round(0.04 * env_fps))))
+        for v in targets.values():          # the estimated ground becomes z = 0 (the env's floor)
+            v[:, 2] -= ground
 
     used = [k for k in kin.names if k in targets and k not in kin.droppable]
     if "l_hip" not in used or "r_hip" not in used:
@@ -891,10 +933,13 @@ def retarget_keypoints(env: Any, keypoints: Mapping[str, np.ndarray], fps: float
     errors = np.empty(t)
     for i in range(t):
         w = base_w.copy()
+        flat = {}
         for j, s in enumerate(_FEET):
+            flat[s] = opts.flat_weight * (opts.contact_weight if contacts[i, j] else 1.0)
             if contacts[i, j]:
                 w[foot_cols[s]] *= opts.contact_weight
-        q, errors[i] = kin.solve(q, tgt[i], w, opts.first_iterations if i == 0 else opts.iterations, opts, idx)
+        q, errors[i] = kin.solve(q, tgt[i], w, opts.first_iterations if i == 0 else opts.iterations, opts, idx,
+                                 flat_weights=flat)
         qpos[i] = q
         if verbose and (i + 1) % 500 == 0:
             print(f"[retarget] {kin.map.name}: frame {i + 1}/{t}, mean keypoint error {errors[:i + 1].mean():.4f} m",
