@@ -24,8 +24,9 @@ def main(cfg: DictConfig) -> int:
     from hydra.core.hydra_config import HydraConfig
 
     from loco_il.experiment.runner import main_with_exit_codes
-    code = main_with_exit_codes(cfg, HydraConfig.get().runtime.output_dir)
-    if code and HydraConfig.get().mode.name == "RUN":
+    hc = HydraConfig.get()
+    code = main_with_exit_codes(cfg, hc.runtime.output_dir, list(hc.overrides.task))
+    if code and hc.mode.name == "RUN":
         sys.exit(code)   # single runs: the exit status says what happened; sweeps go on with the next job
     return code
 

@@ -64,8 +64,12 @@ def is_offpolicy(cls: type[ILAgent]) -> bool:
 
 
 def is_offline(cls: type[ILAgent], cfg: Mapping[str, Any]) -> bool:
-    """An agent trained without environment interaction (BC: `pretrain`, no `core` section)."""
-    return hasattr(cls, "pretrain") and not cfg.get("core")
+    """An agent trained without environment interaction: a class attribute `offline = True`, or one with
+    `pretrain` and no `core.n_env_steps` in its config (BC)."""
+    flag = getattr(cls, "offline", None)
+    if flag is not None:
+        return bool(flag)
+    return hasattr(cls, "pretrain") and not (cfg.get("core") or {}).get("n_env_steps")
 
 
 def default_budget(cfg: Mapping[str, Any]) -> int:

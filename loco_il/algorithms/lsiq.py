@@ -23,11 +23,14 @@ Consequences used by the practical algorithm (paper Sec. 3-4):
     agent transitions (our reading of the paper's treatment -- see UNCERTAIN below), the targets are
     Q_max / Q_min;
   * V(s') comes from the Polyak target critic (stabilization as in SAC).
-Writing E_pi[V(s) - gamma V(s')] (IQ-Learn's value form) instead of E_pi[r_Q] adds the term
-E_pi[V(s) - Q(s, a)] (zero in expectation for on-policy actions up to the entropy bonus); it is
-left out by default and enabled with `value_term=True`.
-UNCERTAIN (reported): absorbing target per data source, leaving out the value term by default,
-and the IDM's training details; r_max/Q_max follow the derivation above with the brief's c = 0.5.
+IQ-Learn's objective has E_pi[V(s) - gamma V(s')] where the derivation above has E_pi[r_Q]; the
+difference is the term E_pi[V(s) - Q(s, a)] (for actions of the current policy it is only the
+entropy bonus, for replayed actions of older policies it contrasts Q(s, a~pi) with Q(s, a_old)).
+It is kept by default (`value_term=True`, i.e. the exact IQ-Learn objective under the mixture
+regularizer): in our InvertedPendulum test the pure least-squares form (`value_term=False`)
+reached the expert return too but then oscillated.
+UNCERTAIN (reported): the absorbing target per data source, the value term, and the IDM's
+training details; r_max/Q_max follow the derivation above with the brief's c = 0.5.
 
 LSIQ-fO (paper Sec. 5, "learning from observations"): an inverse dynamics model
 IDM(s, s') -> a is fit by regression on the agent's own replay transitions and labels the
@@ -89,7 +92,7 @@ class LSIQ(OffPolicyILAgent):
     supported_datasets = frozenset({"perfect", "preference"})
 
     def __init__(self, mdp_info, policy_module, *, reg_coef: float = 0.5, mix: float = 0.5,
-                 treat_absorbing: bool = True, value_term: bool = False, **kwargs):
+                 treat_absorbing: bool = True, value_term: bool = True, **kwargs):
         kwargs.setdefault("actor_lr", 3e-5)  # LS-IQ's actor learning rate (see experiment_configs/algo/lsiq.yaml)
         super().__init__(mdp_info, policy_module, **kwargs)
         self.reg_coef, self.mix = reg_coef, mix

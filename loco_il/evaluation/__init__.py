@@ -49,7 +49,7 @@ def evaluate_policy(env: Any, policy: Callable[[np.ndarray], np.ndarray], episod
                 break
         returns.append(total)
         lengths.append(t)
-    out = {"returns": returns, "lengths": lengths, "episodes": int(episodes), "seed": int(seed),
+    out = {"returns": returns, "lengths": lengths, "episodes": int(episodes), "eval_seed": int(seed),
            "return_mean": float(np.mean(returns)), "return_std": float(np.std(returns)),
            "length_mean": float(np.mean(lengths))}
     if collect_obs:

@@ -34,7 +34,7 @@ CHECKPOINT_NAME = "checkpoint.pt"
 
 #: keys of the run config that may change between a run and its resumption
 RESUMABLE_KEYS = frozenset({"resume", "stop_after_steps", "logger", "eval", "n_steps", "checkpoint_every",
-                            "device", "torch_threads", "results_dir", "budget_per_algo", "print_table"})
+                            "device", "torch_threads", "results_dir", "per_algo"})
 
 
 class CheckpointError(RuntimeError):

@@ -94,6 +94,7 @@ class RunLogger:
         self._wandb = None
         self.wandb_id = wandb_id
         self._bar = None
+        self._postfix: dict[str, Any] = {}
         wandb_cfg = dict(wandb_cfg or {})
         mode = str(wandb_cfg.get("mode", "disabled"))
         if mode != "disabled":
@@ -165,8 +166,9 @@ class RunLogger:
         if self._bar is None:
             return
         if postfix:
-            self._bar.set_postfix({k: (f"{v:.4g}" if isinstance(v, float) else v) for k, v in postfix.items()
-                                   if v is not None}, refresh=False)
+            self._postfix.update({k: (f"{v:.4g}" if isinstance(v, float) else v) for k, v in postfix.items()
+                                  if v is not None})
+            self._bar.set_postfix(self._postfix, refresh=False)
         self._bar.update(int(n))
 
     def write(self, msg: str) -> None:

@@ -25,7 +25,7 @@ import shutil
 import sys
 import time
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 import torch
@@ -64,6 +64,37 @@ def seed_everything(seed: int) -> None:
     torch.manual_seed(seed)
 
 
+def overridden_keys(cli_overrides: Sequence[str], prefix: str = "algo.") -> list[str]:
+    """Dotted keys (below `prefix`) that the command line set, e.g. `algo.params.lr=1e-4` -> `params.lr`."""
+    keys = []
+    for item in cli_overrides:
+        key = item.split("=", 1)[0].lstrip("+~")
+        if key.startswith(prefix):
+            keys.append(key[len(prefix):])
+    return keys
+
+
+def apply_per_algo(cfg: dict, cli_overrides: Sequence[str] = ()) -> dict:
+    """Merge `cfg["per_algo"][<algo name>]` (per-task tuning from a task file) into `cfg["algo"]`.
+
+    Precedence: algo/<name>.yaml < per_algo entry < command line (`algo.*` overrides keep their values).
+    The entry's `n_steps` is the task's default budget for that algorithm (see `Runner.budget`).
+    """
+    from omegaconf import OmegaConf
+    entry = dict((cfg.get("per_algo") or {}).get(cfg["algo"]["name"]) or {})
+    entry.pop("n_steps", None)
+    if not entry:
+        return cfg
+    original = OmegaConf.create(cfg["algo"])
+    merged = OmegaConf.merge(original, OmegaConf.create(entry))
+    for key in overridden_keys(cli_overrides):
+        value = OmegaConf.select(original, key, default=None)
+        OmegaConf.update(merged, key, value, force_add=True)
+    out = dict(cfg)
+    out["algo"] = OmegaConf.to_container(merged, resolve=True)
+    return out
+
+
 # ----------------------------------------------------------------------------- datasets
 def load_datasets(env: Any, dcfg: Mapping[str, Any]):
     """(train, test) expert data of `env`'s Task-ID; test is None when the split leaves no test episodes."""
@@ -91,8 +122,8 @@ def dataset_type_of(task_id: str) -> str:
 
 # ----------------------------------------------------------------------------- the run
 class Runner:
-    def __init__(self, cfg: Any, run_dir: str | Path):
-        self.cfg = _plain(cfg)
+    def __init__(self, cfg: Any, run_dir: str | Path, cli_overrides: Sequence[str] = ()):
+        self.cfg = apply_per_algo(_plain(cfg), cli_overrides)
         self.run_dir = Path(run_dir)
         self.run_dir.mkdir(parents=True, exist_ok=True)
         c = self.cfg
@@ -108,9 +139,9 @@ class Runner:
         from loco_il.algorithms import factory
         if self.cfg.get("n_steps") is not None:
             return int(self.cfg["n_steps"])
-        per_algo = self.cfg.get("budget_per_algo") or {}
-        if self.algo_cfg["name"] in per_algo:
-            return int(per_algo[self.algo_cfg["name"]])
+        entry = (self.cfg.get("per_algo") or {}).get(self.algo_cfg["name"]) or {}
+        if entry.get("n_steps") is not None:
+            return int(entry["n_steps"])
         return factory.default_budget(self.algo_cfg)
 
     def _intervals(self, budget: int) -> tuple[int, int, int]:
@@ -164,7 +195,8 @@ class Runner:
         self.offline = factory.is_offline(cls, self.algo_cfg)
 
         ckpt = self._prepare_dir()
-        if ckpt is not None and ckpt.get("finished") and (self.run_dir / "eval.json").is_file():
+        if (ckpt is not None and ckpt.get("finished") and (self.run_dir / "eval.json").is_file()
+                and int(ckpt["counters"]["step"]) >= self.budget()):   # a larger n_steps trains on
             import json
             result = json.loads((self.run_dir / "eval.json").read_text())
             print(f"[loco_il] {self.run_dir} already finished ({result.get('steps')} steps); final evaluation:")
@@ -187,10 +219,12 @@ class Runner:
         counters = {"step": 0, "env_steps": 0, "episodes": 0, "n_evals": 0}
         wall = 0.0
         wandb_id = None
+        window: dict[str, list] = {"returns": []}   # training returns since the last evaluation
         if ckpt is not None:
             restore(ckpt, agent=agent, env=env)
             counters.update(ckpt["counters"])
             wall, wandb_id = float(ckpt.get("wall_time", 0.0)), ckpt.get("wandb_id")
+            window["returns"] = list((ckpt.get("extra") or {}).get("train_returns", []))
         step = int(counters["step"])
 
         logger = RunLogger(self.run_dir, c, wandb_cfg=self.log_cfg.get("wandb"),
@@ -207,7 +241,6 @@ class Runner:
         clock = Stopwatch(wall)
         stop_after = c.get("stop_after_steps")
         try:
-            window: dict[str, list] = {"returns": []}
             core = None if self.offline else self._make_core(window, counters)
             last_t, last_step = clock(), step
             while step < budget:
@@ -223,7 +256,7 @@ class Runner:
                     now = clock()
                     row = self._evaluate_row(counters, now, (step - last_step) / max(now - last_t, 1e-9),
                                              window, fit_info)
-                    last_t, last_step = now, step
+                    last_t, last_step = clock(), step   # steps/s without the evaluation's time
                     counters["n_evals"] += 1
                     logger.log(row)
                     logger.write(f"[loco_il] step {step}: eval return {row['eval_return_mean']:.2f} ± "
@@ -232,7 +265,8 @@ class Runner:
                                                                     else ""))
                 if step % ckpt_every == 0 or step == budget:
                     save_checkpoint(self.run_dir / CHECKPOINT_NAME, agent=agent, env=env, counters=counters,
-                                    wall_time=clock(), config=c, wandb_id=logger.wandb_id)
+                                    wall_time=clock(), config=c, wandb_id=logger.wandb_id,
+                                    extra={"train_returns": window["returns"]})
                 if stop_after is not None and step >= int(stop_after) and step < budget:
                     raise StopRequested(f"stop_after_steps={stop_after}: stopped at step {step}/{budget} "
                                         f"(re-run the same command to resume)")
@@ -349,16 +383,19 @@ class Runner:
         print("\nFinal evaluation\n" + format_eval_table([result]), flush=True)
 
 
-def run(cfg: Any, run_dir: str | Path) -> dict:
-    """Train (or resume, or report a finished run in) `run_dir`; returns the final evaluation."""
-    return Runner(cfg, run_dir).run()
+def run(cfg: Any, run_dir: str | Path, cli_overrides: Sequence[str] = ()) -> dict:
+    """Train (or resume, or report a finished run in) `run_dir`; returns the final evaluation.
+
+    `cli_overrides`: the command line's overrides (Hydra's `overrides.task`), so that `algo.*` values
+    given there win over a task file's `per_algo` entry."""
+    return Runner(cfg, run_dir, cli_overrides).run()
 
 
-def main_with_exit_codes(cfg: Any, run_dir: str | Path) -> int:
+def main_with_exit_codes(cfg: Any, run_dir: str | Path, cli_overrides: Sequence[str] = ()) -> int:
     """`run` for command-line use: clean one-line messages and exit codes for expected failures."""
     from loco_il.datasets.trajectory import DatasetError
     try:
-        run(cfg, run_dir)
+        run(cfg, run_dir, cli_overrides)
     except StopRequested as exc:
         print(f"[loco_il] {exc}", file=sys.stderr, flush=True)
         return STOPPED_EXIT_CODE

@@ -5,12 +5,13 @@ import mujoco
 import numpy as np
 import pytest
 
-from loco_il.datasets import Trajectories
-from loco_il.datasets.gait import (ControllerParams, GaitParams, PhaseOscillators, TrotController, is_quadruped,
+from loco_il.datasets import Trajectories, create_dataset
+from loco_il.datasets.gait import (GaitParams, PhaseOscillators, TrotController, is_quadruped,
                                    leg_fk, leg_ik, leg_jacobian, quadruped_legs, quadruped_real_dataset,
                                    quadruped_real_provider, real_dispatcher, run_gait_episode)
 from loco_il.datasets.gait.controller import wrap_angle
 from loco_il.datasets.gait.cpg import swing_position
+from loco_il.datasets.providers import register_real_provider, registered_providers, unregister_provider
 from loco_il.environments.registry import get_body, make
 
 QUADRUPEDS = ("UnitreeA1", "UnitreeGo1")
@@ -176,13 +177,27 @@ def test_provider_caches_and_dispatches(envs, tmp_path, monkeypatch):
     humanoid = get_body("UnitreeH1")
     assert provider(humanoid) == "other" and calls == [humanoid]
     assert is_quadruped(env) and is_quadruped(get_body("UnitreeA1")) and not is_quadruped(humanoid)
+    assert is_quadruped("UnitreeA1.hard.real.pomdp") and not is_quadruped("UnitreeH1.walk.real")
     with pytest.raises(TypeError):
         quadruped_real_provider(env, n_episodes=1, bogus=1)
+    # through create_dataset (the registry's `real` provider wrapped by the dispatcher): masks applied
+    saved = registered_providers().get("real")
+    register_real_provider(real_dispatcher(saved), replace=True)
+    try:
+        pomdp = make("UnitreeGo1.simple.real.pomdp")
+        got = create_dataset(pomdp, **kwargs)
+        assert got.obs_dim == pomdp.obs_spec.dim < env.full_obs_spec.dim and got.actions is None
+        np.testing.assert_array_equal(got.obs, data.obs[:, pomdp.obs_mask])     # same cached file
+    finally:
+        if saved is None:
+            unregister_provider("real")
+        else:
+            register_real_provider(saved, replace=True)
 
 
 def test_pomdp_env_gets_full_observations(envs):
     env = make("UnitreeA1.simple.real.pomdp")
-    data = quadruped_real_dataset(env, n_episodes=1, seed=0, episode_steps=20, warmup=0.2)
+    data = quadruped_real_dataset(env, n_episodes=1, seed=0, episode_steps=20, warmup=0.2, speed_tolerance=1.0)
     assert data.obs_dim == env.full_obs_spec.dim > env.obs_spec.dim
 
 

@@ -215,3 +215,22 @@ def test_cli_train_and_eval(tmp_path):
     assert proc.returncode == 0, proc.stderr[-3000:]
     result = json.loads(proc.stdout.strip().splitlines()[-1])
     assert result["episodes"] == 2 and result["task_id"] == TASK
+
+
+def test_per_body_config_sits_between_train_yaml_and_command_line():
+    from hydra import compose, initialize_config_dir
+
+    from loco_il.experts.__main__ import CONFIG_DIR, compose_train_config
+    overrides = ["task=InvertedPendulum.balance", "lr=5e-4"]
+    with initialize_config_dir(config_dir=CONFIG_DIR, version_base=None):
+        cfg = compose(config_name="train", overrides=overrides)
+    plain = compose_train_config(cfg, overrides)
+    assert plain["lr"] == 5e-4                 # command line beats configs/body/InvertedPendulum.yaml
+    assert plain["num_steps"] == 256           # the body file beats train.yaml (128)
+    assert plain["out_dir"] == "runs/experts/InvertedPendulum.balance/seed0"
+    TrainConfig.from_mapping(plain)
+    with initialize_config_dir(config_dir=CONFIG_DIR, version_base=None):
+        hopper = compose_train_config(compose(config_name="train", overrides=["task=Hopper.run"]), ["task=Hopper.run"])
+    assert hopper["num_steps"] is None and hopper["lr"] == 3e-4
+    assert TrainConfig.from_mapping(hopper).steps_per_env == 128               # 2048 / 16 envs
+    assert TrainConfig.from_mapping(dict(hopper, num_envs=2)).steps_per_env == 1024

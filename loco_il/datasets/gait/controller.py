@@ -4,32 +4,38 @@ Each control step (the env's ``dt``, e.g. 10 ms) the controller
 
 1. reads the trunk state from the simulator (position, heading ``psi``, roll/pitch, planar velocity);
 2. forms the body command: velocity ``speed * (cos t, sin t)`` toward the commanded direction ``t``
-   (ramped up from standing over ``ramp_time``), plus a cross-track term that steers back onto the
-   straight line through the start point in direction ``t``; and a yaw rate ``k_yaw * wrap(t - psi)``
-   (clipped) that turns the trunk toward ``t``. The velocity is tracked in any body direction, so the
-   robot moves toward ``t`` while it is still turning (it side-steps, then walks forward);
+   (ramped up from standing over ``ramp_time``; scaled down to ``away_speed_factor`` while the trunk
+   still faces away from ``t``), plus a cross-track term that steers back onto the straight line
+   through the start point in direction ``t``; and a yaw rate ``k_yaw * wrap(t - psi)`` (clipped)
+   that turns the trunk toward ``t``. The velocity is tracked in any body direction, so the robot
+   moves toward ``t`` while it is still turning (it side-steps / backs up, then walks forward);
 3. advances the phase oscillators (`cpg.PhaseOscillators`, trot);
-4. moves every foot target in the *heading frame* (yaw-aligned, level, origin at the trunk):
-   stance feet slide backwards at the commanded body velocity (and yaw rate); swing feet follow a
-   raised arc from lift-off to a touchdown point chosen by Raibert's rule,
-   ``p_td = p_nominal + v_cmd T_stance / 2 + k_raibert (v - v_cmd)`` (plus the yaw-rate term);
-   the vertical target keeps the trunk at ``body_height``;
-5. rotates the targets into the trunk frame with the *measured* roll and pitch (so stance legs
-   level the trunk) and solves the analytic leg IK (`leg_ik.leg_ik`) for joint targets ``q_ref``;
+4. moves every foot target in the *heading frame* (yaw-aligned, origin at the trunk): stance feet
+   slide backwards at the commanded body velocity plus an integral of the velocity error (so the
+   mean speed settles on the command despite foot slip and tracking lag) and with the yaw rate;
+   swing feet follow a raised arc from lift-off to a touchdown point chosen by Raibert's rule,
+   ``p_td = p_nominal + v T_stance / 2 + k_raibert (v_measured - v_cmd)`` (plus the yaw-rate term);
+   the vertical target keeps the trunk at ``body_height`` above the feet;
+5. solves the analytic leg IK (`leg_ik.leg_ik`) for joint targets ``q_ref``, taking the targets as
+   trunk-frame positions: feet held on a plane parallel to the trunk make the stance legs level the
+   trunk on flat ground (``level_frame=True`` instead rotates the targets by the measured roll/pitch,
+   which leaves the attitude uncontrolled -- kept for experiments);
 6. applies them through the body's own actuators for the env's ``n_substeps`` physics steps at the
    env's timestep, the targets interpolated linearly over the substeps:
    * torque motors (LocoMuJoCo's A1): a joint PD loop at the physics rate (1 kHz),
      ``tau = Kp (q_ref - q) + Kd (dq_ref - dq) + tau_ff``, ``ctrl = tau / gear`` clipped to the
      control range (|ctrl| <= 1, i.e. the motor limits). Running the PD at the physics rate, rather
      than holding one torque for the whole 10 ms env step, is what lets stiff gains stay stable;
-   * position servos (Menagerie's Go1): ``ctrl = q_ref + tau_ff / kp_servo``, clipped to the range.
+   * position servos (Menagerie's Go1, fixed servo gain ``kp_servo``): the target itself,
+     ``ctrl = q_ref + (tau_ff + servo_kd (dq_ref - dq)) / kp_servo`` clipped to the control range
+     (the offset adds the feed-forward and some damping the servos lack).
    ``tau_ff = J^T f`` is a gravity feed-forward: each stance foot pushes down with an equal share of
    the robot's weight.
 
 The simulation is driven directly through ``data.ctrl`` and ``mujoco.mj_step`` on the env's own
-model and data (same timestep, same substeps per env step); `GaitRollout` builds every observation
-with ``env.set_sim_state`` (the env's own observation function, command features included) and the
-reward and termination with the env task's own functions.
+model and data (same timestep, same substeps per env step); `provider.run_gait_episode` builds every
+observation with ``env.set_sim_state`` (the env's own observation function, command features
+included) and the reward and termination with the env task's own functions.
 """
 from __future__ import annotations
 
@@ -39,7 +45,7 @@ import mujoco
 import numpy as np
 
 from loco_il.datasets.gait.cpg import GaitParams, PhaseOscillators, TROT_OFFSETS, stance_velocity, swing_position
-from loco_il.datasets.gait.leg_ik import LegGeometry, leg_fk, leg_ik, leg_jacobian, quadruped_legs
+from loco_il.datasets.gait.leg_ik import LegGeometry, leg_ik, leg_jacobian, quadruped_legs
 
 GRAVITY = 9.81
 
@@ -57,9 +63,10 @@ class ControllerParams:
     gait: GaitParams = field(default_factory=GaitParams)
     kp: float = 150.0                   # torque-motor PD gains (Nm/rad, Nm s/rad)
     kd: float = 3.0
-    raibert_gain: float = 0.08          # s: touchdown shift per m/s of velocity error
+    raibert_gain: float = 0.2           # s: touchdown shift per m/s of velocity error (~sqrt(h/g))
     yaw_gain: float = 2.0               # 1/s
     max_yaw_rate: float = 1.0           # rad/s
+    away_speed_factor: float = 0.5      # speed multiplier when the trunk faces opposite to the direction
     cross_track_gain: float = 1.0       # 1/s
     max_cross_speed: float = 0.15       # m/s
     ramp_time: float = 0.5              # s, speed ramp from standing
@@ -68,7 +75,9 @@ class ControllerParams:
     max_velocity_integral: float = 0.3   # m/s
     stance_width: float = 0.0           # m, extra lateral foot offset (outwards)
     gravity_ff: bool = True
-    level_frame: bool = False
+    servo_kd: float = 2.0               # position servos: damping (Nm s/rad) emulated by offsetting the target
+    level_frame: bool = False           # see the module docstring, step 5
+    ground_speed_matching: bool = True  # swing feet leave and land moving at the stance-foot velocity
 
 
 class TrotController:
@@ -134,6 +143,18 @@ class TrotController:
         others = np.concatenate([geom[floor1, 1], geom[floor2, 0]])
         return np.isin(self.foot_geoms, others)
 
+    def contact_point_speeds(self) -> np.ndarray:
+        """Horizontal speed (m/s) of each foot sphere's lowest point: the slip speed of a foot on the floor
+        (unlike the sphere centre, it does not move when the foot rolls)."""
+        out = np.empty(4)
+        res = np.zeros(6)
+        down = np.array([0.0, 0.0, -1.0])
+        for i, leg in enumerate(self.legs):
+            mujoco.mj_objectVelocity(self.model, self.data, mujoco.mjtObj.mjOBJ_GEOM, leg.foot_geom, res, 0)
+            v = res[3:] + np.cross(res[:3], leg.foot_radius * down)
+            out[i] = np.hypot(v[0], v[1])
+        return out
+
     # ------------------------------------------------------------------ episode
     def reset(self, direction: float, rng: np.random.Generator | None = None,
               phase_jitter: float = 0.0) -> None:
@@ -158,6 +179,7 @@ class TrotController:
         else:
             self.body_height = float(self.params.body_height)
         self.lift_off = self.p_xy.copy()
+        self.lift_off_velocity = np.zeros((4, 2))
         self.was_stance = self.cpg.in_stance()
         self.v_filt = np.zeros(2)
         self.v_int = np.zeros(2)
@@ -179,8 +201,11 @@ class TrotController:
         normal = np.array([-u[1], u[0]])
         offset = float((self.data.xpos[self.trunk, :2] - self.start_xy) @ normal)
         cross = float(np.clip(-p.cross_track_gain * offset, -p.max_cross_speed, p.max_cross_speed))
-        v = p.speed * ramp * u + ramp * cross * normal
-        yaw_rate = float(np.clip(p.yaw_gain * wrap_angle(self.direction - psi), -p.max_yaw_rate, p.max_yaw_rate))
+        err = wrap_angle(self.direction - psi)
+        # slower while the trunk still faces away from the direction (side-stepping / walking backwards)
+        factor = 1.0 - (1.0 - p.away_speed_factor) * (1.0 - np.cos(err)) / 2.0
+        v = p.speed * ramp * factor * u + ramp * cross * normal
+        yaw_rate = float(np.clip(p.yaw_gain * err, -p.max_yaw_rate, p.max_yaw_rate))
         return v, yaw_rate
 
     def plan(self) -> None:
@@ -217,10 +242,18 @@ class TrotController:
             else:
                 if self.was_stance[i]:
                     self.lift_off[i] = self.p_xy[i].copy()
+                    self.lift_off_velocity[i] = stance_velocity(self.p_xy[i], v_sweep, yaw_rate)
                 nom = self.nominal_xy(leg)
                 touchdown = (nom + v_sweep * t_st / 2 + p.raibert_gain * (self.v_filt - v_cmd)
                              + yaw_rate * np.array([-nom[1], nom[0]]) * t_st / 2)
-                self.p_xy[i], lift = swing_position(progress[i], self.lift_off[i], touchdown, p.gait.swing_height)
+                if p.ground_speed_matching:
+                    v_rel = stance_velocity(touchdown, v_sweep, yaw_rate)
+                    self.p_xy[i], lift = swing_position(progress[i], self.lift_off[i], touchdown,
+                                                        p.gait.swing_height, self.lift_off_velocity[i], v_rel,
+                                                        p.gait.swing_time)
+                else:
+                    self.p_xy[i], lift = swing_position(progress[i], self.lift_off[i], touchdown,
+                                                        p.gait.swing_height)
             foot_h = np.array([self.p_xy[i, 0], self.p_xy[i, 1], leg.foot_radius - self.body_height + lift])
             target = (R_rp.T @ foot_h if p.level_frame else foot_h) - leg.hip_pos
             q = leg_ik(leg, target)
@@ -238,7 +271,10 @@ class TrotController:
         for k in range(n):
             q_cmd = self.q_prev + (k + 1) / n * (self.q_ref - self.q_prev)
             if self.position_servo:
-                ctrl = q_cmd + self.tau_ff / self.servo_kp
+                extra = self.tau_ff
+                if self.params.servo_kd:
+                    extra = extra + self.params.servo_kd * (dq_ref - d.qvel[self.v_adr])
+                ctrl = q_cmd + extra / self.servo_kp
             else:
                 q, dq = d.qpos[self.q_adr], d.qvel[self.v_adr]
                 tau = self.params.kp * (q_cmd - q) + self.params.kd * (dq_ref - dq) + self.tau_ff

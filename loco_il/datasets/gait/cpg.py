@@ -92,10 +92,26 @@ def swing_height(s: np.ndarray | float, height: float) -> np.ndarray | float:
     return height * 0.5 * (1.0 - np.cos(2.0 * np.pi * np.clip(s, 0.0, 1.0)))
 
 
-def swing_position(s: float, lift_off: np.ndarray, touchdown: np.ndarray, height: float) -> tuple[np.ndarray, float]:
-    """Horizontal position (xy) and lift of a swinging foot at progress s."""
-    w = smoothstep(s)
-    return lift_off + (touchdown - lift_off) * w, float(swing_height(s, height))
+def swing_position(s: float, lift_off: np.ndarray, touchdown: np.ndarray, height: float,
+                   start_velocity: np.ndarray | None = None, end_velocity: np.ndarray | None = None,
+                   duration: float = 1.0) -> tuple[np.ndarray, float]:
+    """Horizontal position (xy) and lift of a swinging foot at progress s.
+
+    Without velocities the horizontal path is a quintic smoothstep (at rest relative to the trunk at
+    both ends). With ``start_velocity`` / ``end_velocity`` (relative to the trunk, m/s, over a swing of
+    ``duration`` seconds) it is a cubic Hermite curve that leaves and lands with those velocities: a
+    foot that lands moving backwards at the body's speed touches the ground without sliding.
+    """
+    if start_velocity is None and end_velocity is None:
+        w = smoothstep(s)
+        return lift_off + (touchdown - lift_off) * w, float(swing_height(s, height))
+    s = float(np.clip(s, 0.0, 1.0))
+    m0 = np.zeros(2) if start_velocity is None else np.asarray(start_velocity) * duration
+    m1 = np.zeros(2) if end_velocity is None else np.asarray(end_velocity) * duration
+    s2, s3 = s * s, s * s * s
+    xy = ((2 * s3 - 3 * s2 + 1) * lift_off + (s3 - 2 * s2 + s) * m0 + (3 * s2 - 2 * s3) * touchdown
+          + (s3 - s2) * m1)
+    return xy, float(swing_height(s, height))
 
 
 def stance_velocity(p_xy: np.ndarray, v_body: np.ndarray, yaw_rate: float) -> np.ndarray:

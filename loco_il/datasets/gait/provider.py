@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 import sys
 import time
 import warnings
@@ -52,7 +51,11 @@ _DIVERGENCE_WARNINGS = (int(mujoco.mjtWarning.mjWARN_BADQPOS), int(mujoco.mjtWar
 
 
 def is_quadruped(env: Any) -> bool:
-    """True for an env (or Body) of the quadruped family, whose `real` data this module provides."""
+    """True for an env, Body or Task-ID of the quadruped family (``body.family == "quadruped"``), whose
+    `real` data this module provides."""
+    if isinstance(env, str):
+        from loco_il.environments.registry import get_body, parse_task_id
+        env = get_body(parse_task_id(env).body)
     body = getattr(env, "body", env)
     return getattr(body, "family", None) == "quadruped"
 
@@ -172,7 +175,6 @@ def run_gait_episode(env: Any, seed: int, *, episode_steps: int | None = None, w
     u = np.array([np.cos(direction), np.sin(direction)])
     xy_start = root_xy(data)
     slips, heading_err, tilts = [], [], []
-    feet_prev = ctl.foot_positions()
     for t in range(n_warm + n_rec):
         if t == n_warm:
             qpos0, qvel0 = data.qpos.copy(), data.qvel.copy()
@@ -193,13 +195,11 @@ def run_gait_episode(env: Any, seed: int, *, episode_steps: int | None = None, w
             obs_l.append(obs)
             next_l.append(next_obs)
             rew_l.append(float(reward))
-            feet = ctl.foot_positions()
             down = ctl.foot_contacts() & ctl.cpg.in_stance()
             if down.any():
-                slips.extend(np.linalg.norm((feet - feet_prev)[down, :2], axis=1) / env.dt)
+                slips.extend(ctl.contact_point_speeds()[down])
             heading_err.append(abs(wrap_angle(ctl.heading() - direction)))
             tilts.append(_tilt(data.xmat[ctl.trunk].reshape(3, 3)))
-        feet_prev = ctl.foot_positions()
         obs = next_obs
         if terminated:
             break
@@ -214,7 +214,7 @@ def run_gait_episode(env: Any, seed: int, *, episode_steps: int | None = None, w
         "direction_error_deg": float(np.degrees(abs(wrap_angle(np.arctan2(vel[1], vel[0]) - direction))))
         if np.linalg.norm(vel) > 1e-6 else 180.0,
         "heading_error_deg": float(np.degrees(np.mean(heading_err))) if heading_err else float("nan"),
-        "foot_slip": float(np.mean(slips)) if slips else float("nan"),      # m/s, stance feet in contact
+        "foot_slip": float(np.mean(slips)) if slips else float("nan"),   # m/s, contact points of stance feet
         "foot_slip_p90": float(np.percentile(slips, 90)) if slips else float("nan"),
         "max_tilt_deg": float(np.degrees(np.max(tilts))) if tilts else float("nan"),
         "mean_reward": float(np.mean(rew_l)) if rew_l else 0.0,
@@ -234,15 +234,15 @@ def _goal_speed(env: Any, default: float = 0.5) -> float:
     return float(getattr(speed, "speed", default))
 
 
-def _generation_env(env: Any) -> Any:
-    """``env`` itself when it emits plain full observations from its own start state, else a fresh one."""
+def _generation_env(env: Any, fresh: bool = False) -> Any:
+    """``env`` itself when it emits plain full observations from its own start state (and not ``fresh``),
+    else a new env of the same body, variant and task (default reward, no masks, no randomization)."""
+    from loco_il.environments.registry import make
     if isinstance(env, str):
-        from loco_il.environments.registry import make
         return make(env)
     plain = (bool(np.all(env.obs_mask)) and env.init_state_sampler is None and env.randomization is None)
-    if plain:
+    if plain and not fresh:
         return env
-    from loco_il.environments.registry import make
     key = f"{env.body_name}{'-' + env.variant if env.variant else ''}.{env.task_name}.{env.dataset_type}"
     return make(key)
 
@@ -376,6 +376,18 @@ def _jsonable(obj: Any) -> Any:
 
 
 # ----------------------------------------------------------------------------- provider (cached)
+def _model_fingerprint(env: Any) -> str:
+    """Hash of what the generated motion depends on in the compiled model and the start state."""
+    m = env.model
+    h = hashlib.sha256()
+    for arr in (m.body_mass, m.body_pos, m.body_inertia, m.jnt_range, m.dof_damping, m.dof_armature,
+                m.dof_frictionloss, m.geom_size, m.geom_friction, m.actuator_gainprm, m.actuator_biasprm,
+                m.actuator_gear, m.actuator_ctrlrange, m.actuator_forcerange, np.array([m.opt.timestep]),
+                np.array([env.n_substeps]), env._init_qpos if hasattr(env, "_init_qpos") else m.qpos0):
+        h.update(np.ascontiguousarray(arr, dtype=np.float64).tobytes())
+    return h.hexdigest()[:16]
+
+
 def _cache_path(gen: Any, n_episodes: int, seed: int, fields: Mapping[str, Any]) -> Path:
     from loco_il.datasets.providers.expert import datasets_cache_dir
     key = f"{gen.body_name}{'-' + gen.variant if gen.variant else ''}.{gen.task_name}"
@@ -399,26 +411,30 @@ def quadruped_real_provider(env: Any, *, n_episodes: int | None = None, generati
     if unknown:
         raise TypeError(f"the quadruped `real` provider got unexpected arguments {sorted(unknown)}; "
                         f"it accepts n_episodes, generation_seed, regenerate, verbose, {sorted(allowed)}")
-    gen = _generation_env(env)
+    gen = _generation_env(env, fresh=True)     # the caller's env keeps its random stream and state
     n = DEFAULT_REAL_EPISODES if n_episodes is None else int(n_episodes)
     fields = {"generator": GAIT_GENERATOR_VERSION, "task": gen.task_id, "n_episodes": n,
-              "seed": int(generation_seed), "mujoco": mujoco.__version__,
+              "seed": int(generation_seed), "mujoco": mujoco.__version__, "model": _model_fingerprint(gen),
               "kwargs": _jsonable({k: asdict(v) if hasattr(v, "__dataclass_fields__") else v
                                    for k, v in sorted(kwargs.items())})}
     path = _cache_path(gen, n, generation_seed, fields)
     side = init_states_path(path)
-    if not regenerate and path.exists():
+    if not regenerate and path.exists() and side.exists():
         hint = f"call create_dataset(env, regenerate=True) to rebuild it (or delete {path})"
         data = Trajectories.load(path, regenerate_hint=hint,
-                                 expect={"obs_names": list(gen.full_obs_spec.names), "dataset_type": "real"})
+                                 expect={"obs_names": list(gen.full_obs_spec.names), "dataset_type": "real",
+                                         "act_dim": None})
         init = InitStates.load(side, regenerate_hint=hint, n_episodes=data.n_trajectories,
                                nq=int(gen.model.nq), nv=int(gen.model.nv))
         return data, init
     if verbose:
         print(f"[loco_il.datasets] generating the gait `real` dataset of {gen.task_id}: {n} episodes, "
               f"seed {generation_seed} -> {path}", file=sys.stderr, flush=True)
-    data, init = quadruped_real_dataset(gen, n, int(generation_seed), return_init_states=True, verbose=verbose,
-                                        **kwargs)
+    try:
+        data, init = quadruped_real_dataset(gen, n, int(generation_seed), return_init_states=True,
+                                            verbose=verbose, **kwargs)
+    finally:
+        gen.stop()
     info = dict(data.info)
     info["cache_fields"] = fields
     data = data.replace(info=info)

@@ -49,8 +49,8 @@ Quality metrics (``RetargetResult.metrics``): ``keypoint_error_m`` (mean distanc
 robot's keypoints and their targets, over used keypoints and frames, before the ground shift),
 ``keypoint_error_uniform_m`` (the same against the uniformly scaled source keypoints, both with
 their hip centres made to coincide: how far the robot's pose is from the scaled source pose,
-proportion differences included), ``foot_sliding_mps`` (mean horizontal speed of a foot's sole
-centre over its contact frames), ``penetration_mean_m`` / ``penetration_max_m`` (depth of the
+proportion differences included), ``foot_sliding_mps`` (mean horizontal speed of the robot's
+ankle and toe keypoints over their own contact frames), ``penetration_mean_m`` / ``penetration_max_m`` (depth of the
 lowest sole point below z = 0, per frame), ``in_limits_fraction`` (frames whose limited joints are
 all within range), ``contact_fraction``, ``root_shift_mean_m`` (mean |vertical root shift| of step 5),
 ``seconds``.
@@ -70,8 +70,9 @@ from .skeleton import MotionClip, canonical_keypoints
 
 __all__ = [
     "RetargetOptions", "RetargetResult", "RobotKinematics", "retarget_clip", "retarget_keypoints",
-    "retarget_robot_to_robot", "robot_keypoints", "build_targets", "detect_contacts", "align_heading",
-    "loop_keypoints", "resample_keypoints", "sole_points", "leg_length", "result_to_trajectories",
+    "retarget_robot_to_robot", "robot_keypoints", "build_targets", "detect_contacts", "foot_contacts",
+    "align_heading",
+    "loop_keypoints", "resample_keypoints", "smooth_keypoints", "sole_points", "leg_length", "result_to_trajectories",
     "RETARGET_VERSION", "TARGET_TREE",
 ]
 
@@ -93,6 +94,8 @@ TARGET_TREE = (
 _PARENT = {c: p for c, p, _ in TARGET_TREE}
 #: keypoints left out when the robot cannot move them relative to their parent keypoint
 _DROPPABLE = ("l_elbow", "r_elbow", "l_wrist", "r_wrist", "head")
+#: leg segments (child keypoints) whose sideways slant in the robot's rest pose is kept
+_LEG_SEGMENTS = ("l_knee", "r_knee", "l_ankle", "r_ankle")
 _FEET = ("l", "r")
 
 
@@ -110,6 +113,9 @@ class RetargetOptions:
     max_step: float = 0.25            # largest |dq| entry per iteration (rad or m)
     contact_weight: float = 3.0       # weight multiplier of the feet during contacts
     flat_weight: float = 4.0          # weight of the foot-roll term (sole edges level)
+    smoothness: float = 1e-3          # pull toward the previous frame's solution (temporal smoothness)
+    pin_blend: float = 0.1            # seconds over which a contact pin fades in and out
+    smooth_sigma: float = 0.03        # Gaussian smoothing of the source keypoints (seconds; 0 = none)
     pin_contacts: bool = True         # pin the feet during contacts (foot-sliding cleanup)
     fix_ground: bool = True           # shift the root so feet touch and never penetrate the ground
     align: bool = True                # turn the source to head along +x, starting at x = y = 0
@@ -138,6 +144,7 @@ class RetargetResult:
     metrics: dict
     root_shift: np.ndarray            # (T,) vertical root shift applied by the ground fix
     source: str = ""
+    source_points: dict = field(default_factory=dict)   # keypoint -> (T, 3): the source, aligned and scaled
 
     @property
     def n_frames(self) -> int:
@@ -224,6 +231,17 @@ def align_heading(kp: Mapping[str, np.ndarray], min_travel: float = 0.3) -> tupl
     return {k: (v - origin) @ rot.T for k, v in kp.items()}, float(yaw)
 
 
+def smooth_keypoints(kp: Mapping[str, np.ndarray], sigma_frames: float) -> dict:
+    """Gaussian low-pass of keypoint trajectories (``sigma_frames`` in frames; ends held).  Softens
+    capture glitches such as the 7-degree pelvis-yaw step in the middle of DeepMimic's walk cycle."""
+    from scipy.ndimage import gaussian_filter1d
+
+    if sigma_frames <= 0:
+        return {k: np.asarray(v, dtype=float) for k, v in kp.items()}
+    return {k: gaussian_filter1d(np.asarray(v, dtype=float), sigma_frames, axis=0, mode="nearest")
+            for k, v in kp.items()}
+
+
 def resample_keypoints(kp: Mapping[str, np.ndarray], fps: float, new_fps: float) -> dict:
     """Cubic-spline resampling of keypoint trajectories to ``new_fps`` (frames at ``k / new_fps``
     within the source's duration)."""
@@ -276,16 +294,10 @@ def _foot_pitch(d: np.ndarray) -> np.ndarray:
     return np.arctan2(-d[..., 2], np.linalg.norm(d[..., :2], axis=-1))
 
 
-def _set_pitch(d: np.ndarray, delta: float) -> np.ndarray:
-    """Rotate unit directions in their vertical plane: pitch (downward) increased by ``delta``."""
-    horiz = d[..., :2]
-    hn = np.linalg.norm(horiz, axis=-1, keepdims=True)
-    heading = horiz / np.maximum(hn, 1e-9)
-    pitch = _foot_pitch(d) + delta
-    out = np.empty_like(d)
-    out[..., :2] = heading * np.cos(pitch)[..., None]
-    out[..., 2] = -np.sin(pitch)
-    return out
+def _rotate(d: np.ndarray, axis: np.ndarray, angle: float) -> np.ndarray:
+    """Rotate vectors ``d`` (T, 3) about unit axes ``axis`` (T, 3) by ``angle`` (Rodrigues)."""
+    c, s = np.cos(angle), np.sin(angle)
+    return d * c + np.cross(axis, d) * s + axis * np.sum(axis * d, axis=-1, keepdims=True) * (1.0 - c)
 
 
 def build_targets(src: Mapping[str, np.ndarray], rest: Mapping[str, np.ndarray], scale: float,
@@ -330,6 +342,10 @@ def build_targets(src: Mapping[str, np.ndarray], rest: Mapping[str, np.ndarray],
             d = src_all[child] - src_all[parent]
             d = d / np.maximum(np.linalg.norm(d, axis=-1, keepdims=True), 1e-9)
             length = float(np.linalg.norm(rest[child] - rest_all[parent]))
+            if child in _LEG_SEGMENTS:
+                # keep the robot's own sideways slant of the segment (hips wider than knees and feet)
+                o = f_rest.T @ (rest[child] - rest_all[parent])
+                d = _rotate(d, f_src[:, :, 0], float(np.arctan2(o[1], -o[2])))
             if kind == "foot":
                 pitch_src = _foot_pitch(d)
                 side = child[0]
@@ -339,7 +355,8 @@ def build_targets(src: Mapping[str, np.ndarray], rest: Mapping[str, np.ndarray],
                     mask = ank <= np.quantile(ank, 0.3)
                 rest_d = rest[child] - rest_all[parent]
                 pitch_rest = float(_foot_pitch(rest_d / max(np.linalg.norm(rest_d), 1e-9)))
-                d = _set_pitch(d, pitch_rest - float(np.median(pitch_src[mask])))
+                # pitch the foot about the pelvis' lateral axis (well defined even for a vertical foot)
+                d = _rotate(d, f_src[:, :, 1], pitch_rest - float(np.median(pitch_src[mask])))
             out[child] = out[parent] + length * d
     del out["hip_center"]
     assert all(v.shape == (t, 3) for v in out.values())
@@ -368,70 +385,75 @@ def _clean_mask(mask: np.ndarray, min_run: int, max_gap: int) -> np.ndarray:
 
 
 def detect_contacts(kp: Mapping[str, np.ndarray], fps: float, leg: float, height: float = 0.05,
-                    speed: float = 0.6) -> np.ndarray:
-    """(T, 2) bool: left / right foot in contact.  A foot is low when its ankle or toe is within
-    ``height * leg`` of its low level (5th percentile over the clip, both feet pooled) and slow
-    when the horizontal speed of its ankle-toe midpoint is below ``speed * leg`` per second."""
+                    speed: float = 0.6) -> dict:
+    """Contact masks ``(T,)`` per foot point: ``{"l_ankle", "l_toe", "r_ankle", "r_toe"}`` (those present).
+
+    A point is in contact when it is within ``height * leg`` of its low level (5th percentile over
+    the clip, both feet pooled) and its horizontal speed is below ``speed * leg`` per second; runs
+    shorter than 50 ms are dropped, gaps shorter than 40 ms filled.  The ankle stands for the heel:
+    heel-strike to heel-off is an ankle contact, foot-flat to toe-off a toe contact.
+    """
     t = next(iter(kp.values())).shape[0]
-    out = np.zeros((t, 2), dtype=bool)
-    have = [s for s in _FEET if f"{s}_ankle" in kp]
-    if not have or t < 3:
+    out = {}
+    if t < 3:
         return out
-    ankle_low = np.quantile(np.concatenate([kp[f"{s}_ankle"][:, 2] for s in have]), 0.05)
-    toes = [s for s in have if f"{s}_toe" in kp]
-    toe_low = np.quantile(np.concatenate([kp[f"{s}_toe"][:, 2] for s in toes]), 0.05) if toes else None
-    for i, s in enumerate(_FEET):
-        if s not in have:
+    for part in ("ankle", "toe"):
+        keys = [f"{s}_{part}" for s in _FEET if f"{s}_{part}" in kp]
+        if not keys:
             continue
-        ankle = kp[f"{s}_ankle"]
-        h = ankle[:, 2] - ankle_low
-        mid = ankle
-        if toe_low is not None and f"{s}_toe" in kp:
-            h = np.minimum(h, kp[f"{s}_toe"][:, 2] - toe_low)
-            mid = 0.5 * (ankle + kp[f"{s}_toe"])
-        v = np.linalg.norm(np.gradient(mid[:, :2], 1.0 / fps, axis=0), axis=-1)
-        raw = (h < height * leg) & (v < speed * leg)
-        out[:, i] = _clean_mask(raw, min_run=max(2, int(round(0.05 * fps))), max_gap=max(1, int(round(0.04 * fps))))
+        low = np.quantile(np.concatenate([kp[k][:, 2] for k in keys]), 0.05)
+        for k in keys:
+            h = kp[k][:, 2] - low
+            v = np.linalg.norm(np.gradient(kp[k][:, :2], 1.0 / fps, axis=0), axis=-1)
+            raw = (h < height * leg) & (v < speed * leg)
+            out[k] = _clean_mask(raw, min_run=max(2, int(round(0.05 * fps))), max_gap=max(1, int(round(0.04 * fps))))
     return out
 
 
-def _pin_feet(targets: dict, contacts: np.ndarray, rest: Mapping[str, np.ndarray], ground_rest: float,
-              blend: int) -> tuple[dict, float]:
-    """Pin ankle / toe targets during contacts (see the module docstring); returns the new
-    targets and the ground height estimated in target space."""
-    targets = {k: v.copy() for k, v in targets.items()}
-    t = contacts.shape[0]
-    # ground in target space: where the robot's sole is when its ankle target is at a stance
-    lows = []
+def foot_contacts(point_contacts: Mapping[str, np.ndarray], t: int) -> np.ndarray:
+    """(T, 2) bool: left / right foot in contact (ankle or toe)."""
+    out = np.zeros((t, 2), dtype=bool)
     for i, s in enumerate(_FEET):
-        key = f"{s}_ankle"
-        if key in targets and contacts[:, i].any():
-            lows.append(targets[key][contacts[:, i], 2] - (rest[key][2] - ground_rest))
-    if not lows:
-        return targets, 0.0
-    ground = float(np.median(np.concatenate(lows)))
-    for i, s in enumerate(_FEET):
-        runs = _runs(contacts[:, i])
-        if not runs:
-            continue
         for part in ("ankle", "toe"):
-            key = f"{s}_{part}"
-            if key not in targets:
-                continue
-            orig = targets[key]
-            pinned = orig.copy()
-            w = np.zeros(t)
-            for a, b in runs:
-                p = orig[a:b].mean(axis=0)
-                p[2] = ground + (rest[key][2] - ground_rest)
-                lo, hi = max(0, a - blend), min(t, b + blend)
-                for j in range(lo, hi):
-                    wj = 1.0 if a <= j < b else 1.0 - (a - j if j < a else j - b + 1) / (blend + 1)
-                    if wj > w[j]:
-                        w[j] = wj
-                        pinned[j] = p
-            targets[key] = orig + w[:, None] * (pinned - orig)
-    return targets, ground
+            if f"{s}_{part}" in point_contacts:
+                out[:, i] |= point_contacts[f"{s}_{part}"]
+    return out
+
+
+def _pin_feet(targets: dict, point_contacts: Mapping[str, np.ndarray], rest: Mapping[str, np.ndarray],
+              ground_rest: float, blend: int) -> tuple[dict, float, dict]:
+    """Pin ankle / toe targets during their contacts (see the module docstring); returns the new
+    targets, the ground height estimated in target space and the pin strength (T,) in [0, 1] of
+    each pinned point (1 during its contacts, fading out over ``blend`` frames around them)."""
+    targets = {k: v.copy() for k, v in targets.items()}
+    t = next(iter(targets.values())).shape[0]
+    strength = {}
+    # ground in target space: where the robot's sole is when a contact point is at its standing height
+    lows = [targets[k][m, 2] - (rest[k][2] - ground_rest) for k, m in point_contacts.items()
+            if k in targets and m.any()]
+    if not lows:
+        return targets, 0.0, strength
+    ground = float(np.median(np.concatenate(lows)))
+    smooth = lambda x: x * x * (3.0 - 2.0 * x)          # noqa: E731
+    for key, mask in point_contacts.items():
+        runs = _runs(mask)
+        if key not in targets or not runs:
+            continue
+        orig = targets[key]
+        pinned = orig.copy()
+        w = np.zeros(t)
+        for a, b in runs:
+            p = orig[a:b].mean(axis=0)
+            p[2] = ground + (rest[key][2] - ground_rest)
+            for j in range(max(0, a - blend), min(t, b + blend)):
+                dist = a - j if j < a else (j - b + 1 if j >= b else 0)
+                wj = smooth(1.0 - dist / (blend + 1))
+                if wj > w[j]:
+                    w[j] = wj
+                    pinned[j] = p
+        targets[key] = orig + w[:, None] * (pinned - orig)
+        strength[key] = w
+    return targets, ground, strength
 
 
 # =============================================================================== robot side
@@ -767,11 +789,15 @@ class RobotKinematics:
         return q
 
     def solve(self, q: np.ndarray, targets: np.ndarray, weights: np.ndarray, iterations: int,
-              opts: RetargetOptions, idx: np.ndarray, flat_weights: Optional[dict] = None) -> tuple[np.ndarray, float]:
+              opts: RetargetOptions, idx: np.ndarray, flat_weights: Optional[dict] = None,
+              smoothness: float = 0.0) -> tuple[np.ndarray, float]:
         """Damped least-squares IK for one frame from ``q``; returns (q, mean keypoint error).
 
         ``flat_weights``: ``{foot: weight}`` of the foot-roll rows (height difference of the sole's
-        inner and outer edges, target 0)."""
+        inner and outer edges, target 0); ``smoothness``: weight of ``|q - q_start|^2`` (``q_start``
+        = the given ``q``, the previous frame's solution)."""
+        q_start = np.array(q, dtype=float)
+        back = np.zeros(self.model.nv)
         m, d = self.model, self.data
         k = len(idx)
         flats = [(self.flat[s], w) for s, w in (flat_weights or {}).items() if s in self.flat and w > 0]
@@ -804,8 +830,11 @@ class RobotKinematics:
             A = (J @ T) * sw[:, None]
             b = err * sw
             post = opts.posture * self.posture
-            H = A.T @ A + opts.damping * eye + np.diag(post)
+            H = A.T @ A + (opts.damping + smoothness) * eye + np.diag(post)
             g = A.T @ b + post * (qref_cols - q[qcols])
+            if smoothness > 0:
+                mujoco.mj_differentiatePos(m, back, 1.0, q, q_start)
+                g += smoothness * back[self.free_dofs]
             dq = np.linalg.solve(H, g)
             # active set: freeze columns at a limit that the step pushes further out, re-solve once
             frozen = [c for c, qa, lo, hi in self.col_limits
@@ -899,6 +928,8 @@ def retarget_keypoints(env: Any, keypoints: Mapping[str, np.ndarray], fps: float
     src = {k: np.asarray(v, dtype=float) for k, v in keypoints.items()}
     if opts.align:
         src, _ = align_heading(src)
+    if opts.smooth_sigma > 0:
+        src = smooth_keypoints(src, opts.smooth_sigma * fps)
     src = resample_keypoints(src, fps, env_fps)
     t = next(iter(src.values())).shape[0]
     scale = _scale_for(kin, src, opts, source_height)
@@ -906,12 +937,14 @@ def retarget_keypoints(env: Any, keypoints: Mapping[str, np.ndarray], fps: float
 
     # contacts on the scaled source (feet positions do not depend on the target mode's details)
     scaled = {k: scale * v for k, v in src.items()}
-    contacts = detect_contacts(scaled, env_fps, leg, opts.contact_height, opts.contact_speed)
+    point_contacts = detect_contacts(scaled, env_fps, leg, opts.contact_height, opts.contact_speed)
+    contacts = foot_contacts(point_contacts, t)
     targets = build_targets(src, kin.rest, scale, opts.mode,
                             stance={"l": contacts[:, 0], "r": contacts[:, 1]})
+    strength = {k: v.astype(float) for k, v in point_contacts.items()}
     if opts.pin_contacts:
-        targets, ground = _pin_feet(targets, contacts, kin.rest, kin.ground_rest,
-                                    blend=max(1, int(round(0.04 * env_fps))))
+        targets, ground, strength = _pin_feet(targets, point_contacts, kin.rest, kin.ground_rest,
+                                              blend=max(1, int(round(opts.pin_blend * env_fps))))
         for v in targets.values():          # the estimated ground becomes z = 0 (the env's floor)
             v[:, 2] -= ground
 
@@ -921,7 +954,16 @@ def retarget_keypoints(env: Any, keypoints: Mapping[str, np.ndarray], fps: float
     idx = np.array([kin.index[k] for k in used])
     tgt = np.stack([targets[k] for k in used], axis=1)               # (T, K, 3)
     base_w = np.array([float((opts.weights or {}).get(k, kin.map.weight(k))) for k in used])
-    foot_cols = {s: [i for i, k in enumerate(used) if k in (f"{s}_ankle", f"{s}_toe")] for s in _FEET}
+    # contact weights fade in and out with the pins (a weight that jumps makes the solution jump)
+    boost = np.ones((t, len(used)))
+    for i, k in enumerate(used):
+        if k in strength:
+            boost[:, i] += (opts.contact_weight - 1.0) * strength[k]
+    foot_strength = np.zeros((t, 2))
+    for j, s in enumerate(_FEET):
+        for part in ("ankle", "toe"):
+            if f"{s}_{part}" in strength:
+                foot_strength[:, j] = np.maximum(foot_strength[:, j], strength[f"{s}_{part}"])
 
     # first frame: init pose turned to the source's heading, many iterations
     f0 = _pelvis_frame({k: v[:1] for k, v in targets.items() if k in ("l_hip", "r_hip", "torso")})[0]
@@ -932,14 +974,11 @@ def retarget_keypoints(env: Any, keypoints: Mapping[str, np.ndarray], fps: float
     qpos = np.empty((t, kin.model.nq))
     errors = np.empty(t)
     for i in range(t):
-        w = base_w.copy()
-        flat = {}
-        for j, s in enumerate(_FEET):
-            flat[s] = opts.flat_weight * (opts.contact_weight if contacts[i, j] else 1.0)
-            if contacts[i, j]:
-                w[foot_cols[s]] *= opts.contact_weight
+        w = base_w * boost[i]
+        flat = {s: opts.flat_weight * (1.0 + (opts.contact_weight - 1.0) * foot_strength[i, j])
+                for j, s in enumerate(_FEET)}
         q, errors[i] = kin.solve(q, tgt[i], w, opts.first_iterations if i == 0 else opts.iterations, opts, idx,
-                                 flat_weights=flat)
+                                 flat_weights=flat, smoothness=0.0 if i == 0 else opts.smoothness)
         qpos[i] = q
         if verbose and (i + 1) % 500 == 0:
             print(f"[retarget] {kin.map.name}: frame {i + 1}/{t}, mean keypoint error {errors[:i + 1].mean():.4f} m",
@@ -955,24 +994,24 @@ def retarget_keypoints(env: Any, keypoints: Mapping[str, np.ndarray], fps: float
 
     # ---- metrics
     low = np.empty((t, 2))
-    centers = np.empty((t, 2, 3))
     for i, qq in enumerate(qpos):
         kin.forward(qq)
         low[i] = kin.sole_heights()
-        centers[i] = kin.sole_centers()
     pts_post = kin.keypoints_of(qpos)
     err_all = np.stack([np.linalg.norm(pts_pre[k] - targets[k], axis=-1) for k in used], 1)
     hc_r = 0.5 * (pts_pre["l_hip"] + pts_pre["r_hip"])
     hc_s = scale * _hip_center(src)
     uni = [np.linalg.norm((pts_pre[k] - hc_r) - (scale * src[k] - hc_s), axis=-1) for k in used if k in src]
-    speeds = np.linalg.norm(np.gradient(centers[..., :2], dt, axis=0), axis=-1)      # (T, 2)
+    slide = [np.linalg.norm(np.gradient(pts_post[k][:, :2], dt, axis=0), axis=-1)[m]
+             for k, m in point_contacts.items() if k in pts_post and m.any()]
+    slide = np.concatenate(slide) if slide else np.zeros(0)
     pen = np.maximum(0.0, -np.nanmin(np.where(np.isfinite(low), low, np.nan), axis=1))
     metrics = {
         "frames": int(t), "fps": env_fps, "scale": float(scale),
         "keypoint_error_m": float(err_all.mean()),
         "keypoint_error_max_m": float(err_all.max()),
         "keypoint_error_uniform_m": float(np.mean(uni)) if uni else float("nan"),
-        "foot_sliding_mps": float(speeds[contacts].mean()) if contacts.any() else 0.0,
+        "foot_sliding_mps": float(slide.mean()) if slide.size else 0.0,
         "penetration_mean_m": float(pen.mean()), "penetration_max_m": float(pen.max()),
         "in_limits_fraction": float(kin.in_limits(qpos).mean()),
         "contact_fraction": float(contacts.mean()),
@@ -980,8 +1019,12 @@ def retarget_keypoints(env: Any, keypoints: Mapping[str, np.ndarray], fps: float
         "used_keypoints": used, "dropped_keypoints": sorted(set(kin.names) - set(used)),
         "seconds": float(time.perf_counter() - t0),
     }
+    ground_z = ground if opts.pin_contacts else 0.0
+    source_points = {k: v - np.array([0.0, 0.0, ground_z]) + shift[:, None] * np.array([0.0, 0.0, 1.0])
+                     for k, v in scaled.items()}
     return RetargetResult(qpos=qpos, qvel=qvel, dt=dt, targets=targets, robot_points=pts_post, contacts=contacts,
-                          used_keypoints=used, scale=float(scale), metrics=metrics, root_shift=shift, source=source)
+                          used_keypoints=used, scale=float(scale), metrics=metrics, root_shift=shift, source=source,
+                          source_points=source_points)
 
 
 def _clip_height(kp: Mapping[str, np.ndarray]) -> Optional[float]:
@@ -1026,36 +1069,68 @@ def retarget_robot_to_robot(src_env: Any, src_qpos_traj: np.ndarray, dst_env: An
 # =============================================================================== dataset
 
 
-def result_to_trajectories(env: Any, results: Sequence[RetargetResult], info: Optional[Mapping[str, Any]] = None):
+def result_to_trajectories(env: Any, results: Sequence[RetargetResult], info: Optional[Mapping[str, Any]] = None,
+                           evaluate_reward: bool = True):
     """A `real` :class:`~loco_il.datasets.trajectory.Trajectories` (one episode per result).
 
     Observations are what ``env`` emits in each retargeted state (``env.set_sim_state``), so the
     layout is ``env.obs_spec``'s; use a full-observation env (no ``.pomdp``).  Transition ``t`` goes
-    from frame ``t`` to frame ``t + 1``; rewards are zeros (motion capture has no reward), absorbing
-    is False everywhere and ``last`` marks each clip's end.
+    from frame ``t`` to frame ``t + 1``; absorbing is False everywhere (a recorded motion does not
+    end in a fall) and ``last`` marks each clip's end.  Rewards: with ``evaluate_reward`` the
+    task's reward evaluated on the motion (the velocity of the task's reference point from frame t
+    to t + 1, with a zero action since motion capture has none), else zeros.  The task's
+    termination rule is evaluated too: ``info["terminated_fraction"]`` is the share of transitions
+    it would have ended (states outside the task's height / orientation bounds).
     """
     from loco_il.datasets.trajectory import Trajectories
 
-    obs_l, nobs_l, last_l = [], [], []
+    obs_l, nobs_l, last_l, rew_l, term_l = [], [], [], [], []
+    task = getattr(env, "task", None)
+    can_eval = evaluate_reward and task is not None and hasattr(env, "_velocity_point")
+    if can_eval:
+        from loco_il.environments.tasks import StepContext
+        zero = np.zeros(env.model.nu)
     for r in results:
         if r.n_frames < 2:
             raise ValueError("a retargeted clip needs at least 2 frames")
-        obs = np.stack([env.set_sim_state(q, v) for q, v in zip(r.qpos, r.qvel)]).astype(np.float64)
+        obs, points = [], []
+        for q, v in zip(r.qpos, r.qvel):
+            obs.append(env.set_sim_state(q, v))
+            if can_eval:
+                points.append(env._velocity_point().copy())
+        obs = np.asarray(obs, dtype=np.float64)
+        n = r.n_frames - 1
+        rew, term = np.zeros(n), np.zeros(n, dtype=bool)
+        if can_eval:
+            cmd = env.command
+            for i in range(n):
+                env.set_sim_state(r.qpos[i + 1], r.qvel[i + 1])
+                ctx = StepContext(env.model, env.data, env.dt, zero, points[i], points[i + 1], cmd)
+                term[i] = bool(task.termination(ctx)) if task.termination else False
+                ctx.healthy = not term[i]
+                rew[i] = float(env.reward_fn(ctx)[0])
         obs_l.append(obs[:-1])
         nobs_l.append(obs[1:])
-        last = np.zeros(r.n_frames - 1, dtype=bool)
+        rew_l.append(rew)
+        term_l.append(term)
+        last = np.zeros(n, dtype=bool)
         last[-1] = True
         last_l.append(last)
     obs = np.concatenate(obs_l)
     n = len(obs)
+    terms = np.concatenate(term_l)
     full_info = {
         "task_id": getattr(env, "task_id", None), "dataset_type": "real",
         "obs_names": list(env.obs_spec.names), "simulator": f"mujoco {mujoco.__version__}", "seed": None,
-        "policy_checksum": None, "reward": "zeros (motion capture has no reward)",
+        "policy_checksum": None,
+        "reward": ("task reward evaluated on the motion (zero action: motion capture has no actions)" if can_eval
+                   else "zeros (motion capture has no reward)"),
+        "terminated_fraction": float(terms.mean()) if can_eval else None,
         "retarget_version": RETARGET_VERSION,
-        "episode_metrics": [{k: v for k, v in r.metrics.items()} for r in results],
+        "episode_metrics": [dict(r.metrics) for r in results],
         "episode_sources": [r.source for r in results],
+        "episode_returns": [float(x.sum()) for x in rew_l],
     }
     full_info.update(info or {})
-    return Trajectories(obs, np.concatenate(nobs_l), None, np.zeros(n), np.zeros(n, dtype=bool),
+    return Trajectories(obs, np.concatenate(nobs_l), None, np.concatenate(rew_l), np.zeros(n, dtype=bool),
                         np.concatenate(last_l), full_info)

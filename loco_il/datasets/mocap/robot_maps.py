@@ -19,8 +19,8 @@ How a point is written (``RobotMap.keypoints[name]``):
 * ``"site:site_name"`` -- a MuJoCo site.
 
 Conventions the solver relies on: the robot faces +x with its left side at +y in its initial
-pose (true of every body here); ``*_hip`` is the hip rotation centre (where the hip axes meet,
-or the pitch joint's anchor when they do not); ``*_ankle`` is on the ankle pitch axis (so the
+pose (true of every body here); ``*_hip`` is a point of the hip that moves with the pelvis (the
+anchor of the first hip joint, where the hip axes meet when they do); ``*_ankle`` is on the ankle pitch axis (so the
 ankle keypoint does not move when the foot pitches, and ``*_toe`` does); ``torso`` is a point
 on the upper trunk, ``neck`` the base of the neck between the shoulders, ``head`` the centre
 of the head; ``*_shoulder`` / ``*_elbow`` / ``*_wrist`` the arm joint centres (the wrist of
@@ -119,8 +119,8 @@ def _map(name: str, height: float, *parts: Mapping[str, PointSpec], notes: str =
 # --------------------------------------------------------------------------- the maps
 # Body names and offsets read from each model in its initial pose (world axes, metres).
 
-_UNITREE_H1_LEGS = _legs("left_hip_pitch_link", "left_knee_link", "left_ankle_link", "left_ankle_link",
-                         "right_hip_pitch_link", "right_knee_link", "right_ankle_link", "right_ankle_link")
+_UNITREE_H1_LEGS = _legs("left_hip_yaw_link", "left_knee_link", "left_ankle_link", "left_ankle_link",
+                         "right_hip_yaw_link", "right_knee_link", "right_ankle_link", "right_ankle_link")
 
 ROBOT_MAPS: dict[str, RobotMap] = {m.name: m for m in [
     # ---------------------------------------------------------------- LocoMuJoCo bodies
@@ -134,14 +134,14 @@ ROBOT_MAPS: dict[str, RobotMap] = {m.name: m for m in [
     _map("UnitreeG1", 1.26,
          {"pelvis": "pelvis", "torso": ("torso_link", (0.0, 0.0, 0.12)), "neck": ("torso_link", (0.0, 0.0, 0.26)),
           "head": ("torso_link", (0.0, 0.0, 0.42))},
-         _legs("left_hip_roll_link", "left_knee_link", "left_ankle_pitch_link", "left_ankle_roll_link",
-               "right_hip_roll_link", "right_knee_link", "right_ankle_pitch_link", "right_ankle_roll_link"),
+         _legs("left_hip_pitch_link", "left_knee_link", "left_ankle_pitch_link", "left_ankle_roll_link",
+               "right_hip_pitch_link", "right_knee_link", "right_ankle_pitch_link", "right_ankle_roll_link"),
          _arms("left_shoulder_roll_link", "left_elbow_pitch_link", ("left_elbow_roll_link", (0.13, 0.0, 0.0)),
                "right_shoulder_roll_link", "right_elbow_pitch_link", ("right_elbow_roll_link", (0.13, 0.0, 0.0)))),
     _map("Atlas", 1.97,
          {"pelvis": "pelvis", "torso": ("utorso", (0.0, 0.0, 0.15)), "neck": ("utorso", (0.05, 0.0, 0.45)),
           "head": ("utorso", (0.12, 0.0, 0.70))},
-         _legs("l_uleg", "l_lleg", "l_talus", "l_foot", "r_uleg", "r_lleg", "r_talus", "r_foot"),
+         _legs("l_uglut", "l_lleg", "l_talus", "l_foot", "r_uglut", "r_lleg", "r_talus", "r_foot"),
          _arms("l_scap", "l_larm", "l_lfarm", "r_scap", "r_larm", "r_lfarm"),
          notes="LocoMuJoCo removes the back and arm joints: torso and arms follow the pelvis"),
     _map("Talos", 1.76,
@@ -169,14 +169,14 @@ ROBOT_MAPS: dict[str, RobotMap] = {m.name: m for m in [
     _map("G1", 1.32,
          {"pelvis": "pelvis", "torso": ("torso_link", (0.0, 0.0, 0.12)), "neck": ("torso_link", (0.0, 0.0, 0.25)),
           "head": ("torso_link", (0.03, 0.0, 0.37))},
-         _legs("left_hip_roll_link", "left_knee_link", "left_ankle_pitch_link", "left_ankle_roll_link",
-               "right_hip_roll_link", "right_knee_link", "right_ankle_pitch_link", "right_ankle_roll_link"),
+         _legs("left_hip_pitch_link", "left_knee_link", "left_ankle_pitch_link", "left_ankle_roll_link",
+               "right_hip_pitch_link", "right_knee_link", "right_ankle_pitch_link", "right_ankle_roll_link"),
          _arms("left_shoulder_roll_link", "left_elbow_link", "left_wrist_yaw_link",
                "right_shoulder_roll_link", "right_elbow_link", "right_wrist_yaw_link")),
     _map("BoosterT1", 1.16,
          {"pelvis": "Waist", "torso": "Trunk", "neck": ("Trunk", (0.06, 0.0, 0.22)), "head": ("H2", (0.02, 0.0, 0.08))},
-         _legs("Hip_Roll_Left", "Shank_Left", "Ankle_Cross_Left", "left_foot_link",
-               "Hip_Roll_Right", "Shank_Right", "Ankle_Cross_Right", "right_foot_link"),
+         _legs("Hip_Pitch_Left", "Shank_Left", "Ankle_Cross_Left", "left_foot_link",
+               "Hip_Pitch_Right", "Shank_Right", "Ankle_Cross_Right", "right_foot_link"),
          _arms("AL2", "left_hand_link", ("left_hand_link", (0.02, 0.0, -0.16)),
                "AR2", "right_hand_link", ("right_hand_link", (0.02, 0.0, -0.16))),
          notes="the free joint is on the trunk; 'Waist' (below the waist joint) plays the pelvis"),

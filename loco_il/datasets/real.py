@@ -1,0 +1,339 @@
+"""The `real` dataset provider: human motion capture retargeted to the task's robot.
+
+``LocoEnv.make("UnitreeH1.walk.real").create_dataset()`` lands here (the provider registry imports
+this module on first use of a `real` dataset).  For the env's task it
+
+1. finds the task's motion files (:data:`TASK_CLIPS`; ``clips=[...]`` overrides) in the mocap
+   folder: ``$LOCO_IL_MOCAP`` if set (and then only there), else ``<repo>/../shared/mocap``, else
+   ``~/.cache/loco_il/mocap`` -- a file is looked up by its relative path (``deepmimic/...``,
+   ``cmu_bvh/...``) and then by its bare name;
+2. loads them (DeepMimic ``.txt`` or BVH ``.bvh``), trims them, repeats cyclic clips to the
+   wanted length, and retargets each to the robot (:func:`~loco_il.datasets.mocap.retarget.retarget_clip`,
+   keypoint map from :mod:`~loco_il.datasets.mocap.robot_maps`);
+3. turns each clip into one episode of full observations (``env.set_sim_state`` on the robot's
+   ``qpos``/``qvel``), no actions, **zero rewards** (motion capture has none), absorbing False,
+   ``last`` at the clip's end; ``info`` holds the sources with their licences, the retargeting
+   quality metrics (per episode and overall) and the usual keys;
+4. caches the result like the expert datasets: ``$LOCO_IL_DATASETS`` (or
+   ``~/.cache/loco_il/datasets``) ``/<Body>.<task>/real-<key>.npz`` plus the initial states of the
+   episodes (``.init_states.npz``); the key hashes the motion files' contents, the clip list, the
+   solver version and options, the robot model and the MuJoCo version.
+
+Tasks with motion: ``walk`` (DeepMimic ``humanoid3d_walk`` repeated to 10 s; CMU subject 131
+trial 01 from 4.5 s (a straight walk and stop; before, the subject turns round) and trial 02 from
+2 s to 9 s (a slow walk, without the turns at both ends)), ``run`` (DeepMimic ``humanoid3d_run`` and
+``humanoid3d_jog``, each repeated to 10 s).  Other tasks (``stand``, ``carry``, quadruped
+tasks) have no motion here: a clear error says so.  Bodies need a keypoint map (every humanoid
+has one).
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+import sys
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any, Iterable, Mapping, Optional, Sequence, Union
+
+import numpy as np
+
+from loco_il.datasets.trajectory import DatasetError, Trajectories
+from loco_il.datasets.providers.registry import (ProviderUnavailableError, register_real_provider,
+                                                   registered_providers)
+
+__all__ = ["ClipSpec", "TASK_CLIPS", "PROVENANCE", "MotionFilesMissingError", "mocap_search_path", "find_motion_files",
+           "load_motion", "real_provider", "retarget_task", "REAL_GENERATOR_VERSION", "MOCAP_ENV"]
+
+#: environment variable naming the folder of motion files
+MOCAP_ENV = "LOCO_IL_MOCAP"
+#: bump when the way clips become datasets changes (part of the cache key; the solver has its own version)
+REAL_GENERATOR_VERSION = 1
+_REPO = Path(__file__).resolve().parents[2]
+
+
+@dataclass(frozen=True)
+class ClipSpec:
+    """One motion file and how to use it.
+
+    ``path``: relative to the mocap folder (or absolute); ``start`` / ``stop``: seconds kept
+    (None = the whole clip); ``duration``: repeat a cyclic clip until it lasts at least this long.
+    """
+
+    path: str
+    start: Optional[float] = None
+    stop: Optional[float] = None
+    duration: Optional[float] = None
+
+
+TASK_CLIPS: dict[str, tuple[ClipSpec, ...]] = {
+    "walk": (ClipSpec("deepmimic/humanoid3d_walk.txt", duration=10.0),
+             ClipSpec("cmu_bvh/131_01.bvh", start=4.5),           # before 4.5 s the subject turns round
+             ClipSpec("cmu_bvh/131_02.bvh", start=2.0, stop=9.0)),  # without the turns at the start and end
+    "run": (ClipSpec("deepmimic/humanoid3d_run.txt", duration=10.0),
+            ClipSpec("deepmimic/humanoid3d_jog.txt", duration=10.0)),
+}
+
+#: licence / provenance line per source folder (from shared/README.md)
+PROVENANCE = {
+    "deepmimic": "DeepMimic repository (MIT licence, see LICENSE-DeepMimic-MIT.txt); the motions were captured "
+                 "at the CMU and SFU motion-capture labs",
+    "cmu_bvh": "CMU Graphics Lab Motion Capture Database, subject 131 (BVH conversion): free for use in research "
+               "and commercial projects. The data used in this project was obtained from mocap.cs.cmu.edu. The "
+               "database was created with funding from NSF EIA-0196217.",
+}
+
+
+class MotionFilesMissingError(ProviderUnavailableError):
+    """The motion-capture files a `real` dataset needs are not where loco_il looks."""
+
+
+# ----------------------------------------------------------------------------- files
+
+
+def mocap_search_path() -> list[Path]:
+    """Folders searched for motion files: ``$LOCO_IL_MOCAP`` alone when set, else
+    ``<repo>/../shared/mocap`` then ``~/.cache/loco_il/mocap``."""
+    given = os.environ.get(MOCAP_ENV)
+    if given:
+        return [Path(given).expanduser()]
+    return [(_REPO.parent / "shared" / "mocap").resolve(), Path.home() / ".cache" / "loco_il" / "mocap"]
+
+
+def _lookup(folder: Path, rel: str) -> Optional[Path]:
+    p = Path(rel)
+    if p.is_absolute():
+        return p if p.is_file() else None
+    for cand in (folder / p, folder / p.name):
+        if cand.is_file():
+            return cand
+    return None
+
+
+def find_motion_files(specs: Sequence[ClipSpec], what: str = "") -> list[Path]:
+    """Paths of the specs' files, all from one folder of the search path (the first that has
+    them all); :class:`MotionFilesMissingError` naming the files and where to put them."""
+    search = mocap_search_path()
+    for folder in search:
+        found = [_lookup(folder, s.path) for s in specs]
+        if all(f is not None for f in found):
+            return found                                        # type: ignore[return-value]
+    first = search[0]
+    missing = [s.path for s in specs if _lookup(first, s.path) is None]
+    where = ", ".join(str(f) for f in search)
+    raise MotionFilesMissingError(
+        f"{what or 'this real dataset'} is built from motion-capture files that were not found: "
+        f"{', '.join(missing)} (looked in {where}). Put them under {first} keeping their sub-folders "
+        f"(e.g. {first / specs[0].path}), or set ${MOCAP_ENV} to the folder that holds them. The DeepMimic "
+        f"clips (humanoid3d_*.txt) come from the DeepMimic repository (data/motions, MIT licence); the BVH "
+        f"files from the CMU motion-capture database (mocap.cs.cmu.edu, BVH conversions, e.g. subject 131).")
+
+
+def load_motion(path: Union[str, os.PathLike], spec: Optional[ClipSpec] = None):
+    """A :class:`~loco_il.datasets.mocap.skeleton.MotionClip` from a DeepMimic or BVH file, trimmed to
+    ``spec.start``/``spec.stop``; returns ``(clip, n_cycles)`` (repeats needed for ``spec.duration``)."""
+    from loco_il.datasets.mocap import load_bvh, load_deepmimic
+
+    path = Path(path)
+    clip = load_bvh(path) if path.suffix.lower() == ".bvh" else load_deepmimic(path)
+    n_cycles = 1
+    if spec is not None:
+        if spec.start is not None or spec.stop is not None:
+            a = 0 if spec.start is None else int(round(spec.start * clip.fps))
+            b = None if spec.stop is None else int(round(spec.stop * clip.fps)) + 1
+            clip = clip.slice(a, b)
+        if spec.duration and clip.loop and clip.duration > 0:
+            n_cycles = max(1, math.ceil(spec.duration / clip.duration))
+    return clip, n_cycles
+
+
+def _sha256(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def _model_fingerprint(model: Any) -> str:
+    """Hash of what the retargeting depends on in a compiled model."""
+    h = hashlib.sha256()
+    for name in ("body_pos", "body_quat", "body_parentid", "jnt_type", "jnt_axis", "jnt_pos", "jnt_range",
+                 "jnt_limited", "jnt_bodyid", "geom_type", "geom_size", "geom_pos", "geom_quat", "geom_bodyid",
+                 "site_pos", "qpos0", "eq_data", "eq_obj1id", "eq_obj2id", "eq_type"):
+        h.update(np.ascontiguousarray(getattr(model, name)).tobytes())
+    return h.hexdigest()[:16]
+
+
+def _provenance(path: Path) -> str:
+    for key, line in PROVENANCE.items():
+        if key in path.parts or path.parent.name == key:
+            return line
+    return "user-supplied motion file (check its licence)"
+
+
+# ----------------------------------------------------------------------------- generation
+
+
+def _log(msg: str) -> None:
+    print(msg, file=sys.stderr, flush=True)
+
+
+def _as_specs(clips: Optional[Iterable[Any]], task: str, task_id: str) -> tuple[ClipSpec, ...]:
+    if clips is None:
+        if task not in TASK_CLIPS:
+            raise ProviderUnavailableError(
+                f"{task_id}: no motion capture is mapped to the task {task!r}; real datasets are built for the "
+                f"tasks {', '.join(sorted(TASK_CLIPS))}. Pass clips=[<motion file>, ...] to create_dataset() to "
+                f"retarget your own DeepMimic (.txt) or BVH (.bvh) files for this task.")
+        return TASK_CLIPS[task]
+    out = []
+    for c in clips:
+        out.append(c if isinstance(c, ClipSpec) else ClipSpec(str(c)))
+    if not out:
+        raise ValueError("clips must name at least one motion file")
+    return tuple(out)
+
+
+def retarget_task(env: Any, specs: Sequence[ClipSpec], paths: Sequence[Path], options: Any = None,
+                  verbose: bool = True) -> tuple[Trajectories, Any, list]:
+    """Retarget the clips to ``env`` (a full-observation env) and build the dataset; returns
+    ``(trajectories, init_states, results)``."""
+    from loco_il.datasets.mocap.retarget import RobotKinematics, retarget_clip, result_to_trajectories
+    from loco_il.datasets.providers.expert import InitStates
+
+    kin = RobotKinematics(env)
+    results = []
+    for spec, path in zip(specs, paths):
+        clip, n_cycles = load_motion(path, spec)
+        t0 = time.perf_counter()
+        res = retarget_clip(env, clip, n_cycles=n_cycles, options=options, kinematics=kin)
+        res.source = path.name
+        results.append(res)
+        if verbose:
+            m = res.metrics
+            _log(f"[loco_il.datasets] real {env.body_name}.{env.task_name}: {path.name} x{n_cycles} -> "
+                 f"{m['frames']} frames in {time.perf_counter() - t0:.1f}s; keypoint error {m['keypoint_error_m']:.3f} m, "
+                 f"foot sliding {m['foot_sliding_mps']:.3f} m/s, penetration {m['penetration_max_m']:.4f} m (max), "
+                 f"joints in limits {100 * m['in_limits_fraction']:.1f}% of frames")
+    env.reset()
+    data = result_to_trajectories(env, results)
+    init = InitStates(np.stack([r.qpos[0] for r in results]), np.stack([r.qvel[0] for r in results]),
+                      np.full(len(results), -1, dtype=np.int64))
+    return data, init, results
+
+
+def _quality(results: Sequence[Any]) -> dict:
+    """Frame-weighted means over episodes (maxima for the max entries)."""
+    frames = np.array([r.metrics["frames"] for r in results], dtype=float)
+    out = {"frames": int(frames.sum())}
+    for k in ("keypoint_error_m", "keypoint_error_uniform_m", "foot_sliding_mps", "penetration_mean_m",
+              "in_limits_fraction", "contact_fraction", "root_shift_mean_m"):
+        out[k] = float(np.average([r.metrics[k] for r in results], weights=frames))
+    for k in ("keypoint_error_max_m", "penetration_max_m"):
+        out[k] = float(max(r.metrics[k] for r in results))
+    out["seconds"] = float(sum(r.metrics["seconds"] for r in results))
+    out["used_keypoints"] = results[0].metrics["used_keypoints"]
+    out["dropped_keypoints"] = results[0].metrics["dropped_keypoints"]
+    return out
+
+
+def real_provider(env: Any, *, clips: Optional[Iterable[Any]] = None, options: Any = None,
+                  n_episodes: Optional[int] = None, regenerate: bool = False, verbose: bool = True,
+                  generation_seed: int = 0, **unused: Any):
+    """The `real` dataset of ``env``'s task (full observations) and the episodes' initial states.
+
+    ``clips``: motion files (paths relative to the mocap folder, absolute paths or :class:`ClipSpec`)
+    instead of the task's; ``options``: a :class:`~loco_il.datasets.mocap.retarget.RetargetOptions`
+    (or a dict of its fields); ``n_episodes``: keep the first n clips.  ``generation_seed`` is
+    accepted and ignored (retargeting is deterministic).
+    """
+    import mujoco
+
+    from loco_il.datasets.mocap.retarget import RETARGET_VERSION, RetargetOptions
+    from loco_il.datasets.mocap.robot_maps import ROBOT_MAPS, has_robot_map
+    from loco_il.datasets.providers.expert import (InitStates, cache_key, datasets_cache_dir, generation_env,
+                                                   init_states_path, task_key)
+
+    for name in ("expert", "expert_path", "snapshots"):
+        if unused.pop(name, None) is not None:
+            raise TypeError(f"a real dataset is built from motion capture; {name}= does not apply")
+    if unused:
+        raise TypeError(f"unexpected argument(s) for a real dataset: {', '.join(sorted(unused))}")
+    task_id = getattr(env, "task_id", "?")
+    if not has_robot_map(env.body_name):
+        raise ProviderUnavailableError(
+            f"{task_id}: real datasets are human motion capture retargeted to the robot, which needs a keypoint "
+            f"map of the body; {env.body_name} has none (maps exist for {', '.join(sorted(ROBOT_MAPS))}; add one "
+            f"in loco_il/datasets/mocap/robot_maps.py)")
+    specs = _as_specs(clips, env.task_name, task_id)
+    if n_episodes is not None:
+        if not 1 <= int(n_episodes) <= len(specs):
+            raise ValueError(f"n_episodes must be between 1 and {len(specs)} (one episode per clip) for {task_id}")
+        specs = specs[:int(n_episodes)]
+    if options is None:
+        opts = RetargetOptions()
+    elif isinstance(options, Mapping):
+        opts = RetargetOptions(**options)
+    else:
+        opts = options
+    paths = find_motion_files(specs, what=f"the real dataset of {task_id}")
+
+    key = task_key(env)
+    gen_env = generation_env(env, key)
+    try:
+        fields = {
+            "generator": REAL_GENERATOR_VERSION, "retarget": RETARGET_VERSION, "task": key, "dataset_type": "real",
+            "clips": [dict(asdict(s), sha256=_sha256(p)) for s, p in zip(specs, paths)],
+            "options": opts.key(), "model": _model_fingerprint(gen_env.model), "mujoco": mujoco.__version__,
+            "map": repr(ROBOT_MAPS[env.body_name]),
+        }
+        hkey = cache_key(fields)
+        safe = "".join(c if c.isalnum() or c in "-_." else "_" for c in key)
+        path = datasets_cache_dir() / safe / f"real-n{len(specs)}-{hkey}.npz"
+        side = init_states_path(path)
+        hint = f"call create_dataset(env, regenerate=True) to rebuild it (or delete {path})"
+        if not regenerate and path.exists() and side.exists():
+            data = Trajectories.load(path, regenerate_hint=hint,
+                                     expect={"cache_key": hkey, "obs_names": list(gen_env.full_obs_spec.names),
+                                             "act_dim": None})
+            init = InitStates.load(side, regenerate_hint=hint, n_episodes=data.n_trajectories,
+                                   nq=int(gen_env.model.nq), nv=int(gen_env.model.nv))
+            return data, init
+        if verbose:
+            _log(f"[loco_il.datasets] retargeting {len(specs)} motion clip(s) to {key} -> {path}")
+        data, init, results = retarget_task(gen_env, specs, paths, opts, verbose=verbose)
+        sources = [{"file": p.name, "clip": s.path, "start": s.start, "stop": s.stop, "duration": s.duration,
+                    "sha256": f["sha256"], "licence": _provenance(p)} for s, p, f in zip(specs, paths, fields["clips"])]
+        licences = sorted({s["licence"] for s in sources})
+        quality = _quality(results)
+        info = dict(data.info)
+        info.update(
+            task_id=f"{key}.real",
+            source=(f"human motion capture ({', '.join(s['file'] for s in sources)}) retargeted to {env.body_name} "
+                    f"by loco_il.datasets.mocap.retarget v{RETARGET_VERSION}. Licences: " + " | ".join(licences)),
+            sources=sources, quality=quality, cache_key=hkey, cache_fields=fields,
+            generator=f"loco_il.datasets.real v{REAL_GENERATOR_VERSION}",
+            robot_height_m=ROBOT_MAPS[env.body_name].height,
+        )
+        data = data.replace(info=info)
+        if verbose:
+            _log(f"[loco_il.datasets] real {key}: {quality['frames']} frames; keypoint error "
+                 f"{quality['keypoint_error_m']:.3f} m, foot sliding {quality['foot_sliding_mps']:.3f} m/s, "
+                 f"penetration {quality['penetration_mean_m']:.4f} / {quality['penetration_max_m']:.4f} m "
+                 f"(mean / max), joints in limits {100 * quality['in_limits_fraction']:.1f}% of frames")
+        init.save(side)
+        data.save(path)
+        return data, init
+    finally:
+        gen_env.stop()
+
+
+def _register() -> None:
+    if "real" not in registered_providers():      # a user's provider registered earlier wins
+        register_real_provider(real_provider)
+
+
+_register()

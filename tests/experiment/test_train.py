@@ -1,0 +1,208 @@
+"""End-to-end tests of `train.py` (Hydra app), resume, sweeps and `python -m loco_il.evaluation`.
+
+Every run is a subprocess on InvertedPendulum.balance.perfect with a tiny budget. The dataset comes from
+a stand-in expert written here (a linear state-feedback controller stored as an `ExpertPolicy` file that
+balances the pole for all 1000 steps) in a private `LOCO_IL_EXPERTS` folder, so the tests neither need
+nor use the shipped expert, and are deterministic. Datasets are cached in a private `LOCO_IL_DATASETS`.
+"""
+from __future__ import annotations
+
+import csv
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import torch
+
+ROOT = Path(__file__).resolve().parents[2]
+TASK = "InvertedPendulum.balance.perfect"
+GAINS = [1.0, 10.0, 1.0, 1.0]      # obs = [cart pos, pole angle, cart vel, pole ang. vel]; force range [-3, 3]
+#: small, fast settings shared by every run: a 12-episode dataset pool (9 train / 3 held out), W&B off
+FAST = ["dataset.n_episodes=12", "eval=quick", "logger=csv", "hydra/job_logging=disabled"]
+#: a tiny GAIL: small networks, short on-policy batches
+TINY_GAIL = ["algo=gail", "algo.core.n_steps_per_fit=200", "algo.policy.hidden=[32,32]",
+             "algo.params.disc_hidden=[32]", "algo.params.vf_hidden=[32]", "algo.params.disc_batch_size=200",
+             "algo.params.vf_batch_size=100", "algo.params.train_disc_every=1", "algo.params.cg_iters=10"]
+
+
+@pytest.fixture(scope="module")
+def env_vars(tmp_path_factory) -> dict:
+    from loco_il.experts.policy import ExpertPolicy
+    root = tmp_path_factory.mktemp("experiment")
+    expert = ExpertPolicy(4, 1, hidden=(), metadata={"task_id": TASK, "note": "linear stand-in expert (tests)"})
+    with torch.no_grad():
+        expert.policy.net[0].weight.copy_(torch.tensor([GAINS]) / 3.0)
+        expert.policy.net[0].bias.zero_()
+    (root / "experts" / "InvertedPendulum.balance").mkdir(parents=True)
+    expert.save(root / "experts" / "InvertedPendulum.balance" / "expert.pt")
+    env = dict(os.environ, LOCO_IL_EXPERTS=str(root / "experts"), LOCO_IL_DATASETS=str(root / "datasets"),
+               WANDB_MODE="offline", WANDB_SILENT="true", MUJOCO_GL=os.environ.get("MUJOCO_GL", "egl"),
+               OMP_NUM_THREADS="1", PYTHONUNBUFFERED="1", HYDRA_FULL_ERROR="1")
+    env["_root"] = str(root)
+    return env
+
+
+def train(env: dict, results: Path, *overrides: str, check: bool = True, timeout: int = 300,
+          multirun: bool = False) -> subprocess.CompletedProcess:
+    cmd = [sys.executable, "train.py", *(["-m"] if multirun else []), f"results_dir={results}", *FAST, *overrides]
+    proc = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True, timeout=timeout)
+    if check and proc.returncode != 0:
+        raise AssertionError(f"{' '.join(cmd)} exited {proc.returncode}\nstdout:\n{proc.stdout[-3000:]}\n"
+                             f"stderr:\n{proc.stderr[-3000:]}")
+    return proc
+
+
+def run_dir(results: Path, name: str = "bc", seed: int = 0) -> Path:
+    return results / TASK / name / f"seed{seed}"
+
+
+def csv_rows(path: Path) -> list[dict]:
+    with open(path, newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
+def test_end_to_end_train_evaluate_and_rerun(env_vars, tmp_path):
+    """Default task and algorithm (BC) with a tiny budget: every run file, a learned policy, the printed
+    table; `python -m loco_il.evaluation` scores it; re-running the finished command does not train again."""
+    results = tmp_path / "results"
+    proc = train(env_vars, results, "n_steps=300", "eval.every=100")
+    d = run_dir(results)
+    for name in ("config.yaml", "log.csv", "log.jsonl", "checkpoint.pt", "final_agent.pt", "eval.json"):
+        assert (d / name).is_file(), f"missing {name}; run dir holds {sorted(p.name for p in d.iterdir())}"
+    assert "Final evaluation" in proc.stdout and "| InvertedPendulum.balance | perfect | bc | 0 | 300 |" in proc.stdout
+
+    rows = csv_rows(d / "log.csv")
+    assert [int(r["step"]) for r in rows] == [100, 200, 300]
+    assert all(r["eval_return_mean"] not in ("", None) for r in rows)
+    jrows = [json.loads(line) for line in (d / "log.jsonl").read_text().splitlines()]
+    assert [r["step"] for r in jrows] == [100, 200, 300] and "fit/bc_loss" in jrows[-1]
+
+    ev = json.loads((d / "eval.json").read_text())
+    assert (ev["task_id"], ev["algorithm"], ev["dataset_type"], ev["steps"], ev["episodes"]) == (TASK, "bc", "perfect", 300, 3)
+    # the stand-in expert balances for all 1000 steps; random actions last ~5, an untrained policy ~25
+    assert max(ev["returns"]) == 1000, ev["returns"]
+    assert ev["similarity"]["reference"] == "test split" and ev["similarity"]["nn_distance"] >= 0
+    # the default baselines have no expert return for this task: no score, and a message saying why
+    if ev["normalized_score"] is None:
+        assert "python -m loco_il.datasets.baselines update" in ev["normalized_score_note"]
+
+    cfg = (d / "config.yaml").read_text()
+    assert f"task_id: {TASK}" in cfg and "${" not in cfg            # resolved
+    assert "lr: 0.0003" in cfg                                        # the task file's per-algorithm tuning
+
+    score = subprocess.run([sys.executable, "-m", "loco_il.evaluation", f"run_dir={d}", "episodes=2",
+                            f"out={tmp_path / 'score.json'}"], cwd=ROOT, env=env_vars, capture_output=True,
+                           text=True, timeout=120)
+    assert score.returncode == 0, score.stderr[-2000:]
+    res = json.loads(score.stdout.strip().splitlines()[-1])
+    assert res["episodes"] == 2 and len(res["returns"]) == 2 and res["agent_file"].endswith("final_agent.pt")
+    assert json.loads((tmp_path / "score.json").read_text())["return_mean"] == res["return_mean"]
+    assert "| InvertedPendulum.balance | perfect | bc |" in score.stdout
+
+    mtime = (d / "final_agent.pt").stat().st_mtime_ns
+    again = train(env_vars, results, "n_steps=300", "eval.every=100")
+    assert "already finished" in again.stdout
+    assert (d / "final_agent.pt").stat().st_mtime_ns == mtime
+    # the same run dir with another configuration is refused, naming the difference and the way out
+    other = train(env_vars, results, "n_steps=300", "eval.every=100", "algo.params.lr=0.01", check=False)
+    assert other.returncode == 2, other.stderr[-2000:]
+    assert "algo.params.lr: 0.0003 -> 0.01" in other.stderr and "resume=false" in other.stderr
+    assert (d / "final_agent.pt").stat().st_mtime_ns == mtime
+
+
+def test_stopped_run_resumes_to_the_same_result(env_vars, tmp_path):
+    """GAIL stopped after 600 of 1000 env steps (checkpoints every 400: 200 steps are lost and redone)
+    resumes and ends exactly like an uninterrupted run: same total steps, same log, same final returns."""
+    common = [*TINY_GAIL, "n_steps=1000", "eval.every=200", "checkpoint_every=400"]
+    stopped = tmp_path / "stopped"
+    proc = train(env_vars, stopped, *common, "stop_after_steps=600", check=False)
+    assert proc.returncode == 3, proc.stderr[-2000:]
+    d = run_dir(stopped, "gail")
+    assert not (d / "eval.json").exists()
+    ckpt = torch.load(d / "checkpoint.pt", map_location="cpu", weights_only=False)
+    assert ckpt["counters"]["step"] == 400 and ckpt["agent"]["attrs"]["n_fits"] == 2
+    assert [int(r["step"]) for r in csv_rows(d / "log.csv")] == [200, 400, 600]   # 600 is redone on resume
+
+    resumed = train(env_vars, stopped, *common)          # the same command, without the debug stop
+    assert "resuming" in resumed.stdout + resumed.stderr
+    full = tmp_path / "full"
+    train(env_vars, full, *common)
+
+    a, b = json.loads((d / "eval.json").read_text()), json.loads((run_dir(full, "gail") / "eval.json").read_text())
+    assert a["steps"] == b["steps"] == 1000 and a["env_steps"] == b["env_steps"] == 1000
+    assert a["returns"] == b["returns"]
+    ra, rb = csv_rows(d / "log.csv"), csv_rows(run_dir(full, "gail") / "log.csv")
+    assert [int(r["step"]) for r in ra] == [int(r["step"]) for r in rb] == [200, 400, 600, 800, 1000]
+    assert [r["eval_return_mean"] for r in ra] == [r["eval_return_mean"] for r in rb]
+    assert [r["train_return"] for r in ra] == [r["train_return"] for r in rb]
+    assert torch.load(d / "checkpoint.pt", weights_only=False)["finished"]
+
+
+def test_killed_run_resumes(env_vars, tmp_path):
+    """SIGKILL once the first checkpoint exists; the same command finishes the run with the full budget."""
+    results = tmp_path / "results"
+    args = ["n_steps=4000", "eval.every=1000", "checkpoint_every=200"]
+    cmd = [sys.executable, "train.py", f"results_dir={results}", *FAST, *args]
+    proc = subprocess.Popen(cmd, cwd=ROOT, env=env_vars, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    ckpt = run_dir(results) / "checkpoint.pt"
+    try:
+        deadline = time.time() + 240
+        while not ckpt.exists() and proc.poll() is None and time.time() < deadline:
+            time.sleep(0.05)
+        assert proc.poll() is None, "the run ended before it could be killed"
+    finally:
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
+    assert not (run_dir(results) / "eval.json").exists()
+    at = torch.load(ckpt, weights_only=False)["counters"]["step"]
+    assert 0 < at < 4000
+    out = train(env_vars, results, *args)
+    assert f"resuming {run_dir(results)} at step" in out.stdout
+    ev = json.loads((run_dir(results) / "eval.json").read_text())
+    assert ev["steps"] == 4000
+    steps = [int(r["step"]) for r in csv_rows(run_dir(results) / "log.csv")]
+    assert steps == [1000, 2000, 3000, 4000]
+
+
+def test_resume_false_clears_the_run_dir(tmp_path):
+    from loco_il.experiment.runner import Runner
+    for name in ("checkpoint.pt", "log.csv", "log.jsonl", "eval.json", "final_agent.pt"):
+        (tmp_path / name).write_text("old")
+    cfg = {"task_id": TASK, "algo": {"name": "bc"}, "resume": False}
+    assert Runner(cfg, tmp_path)._prepare_dir() is None
+    assert sorted(p.name for p in tmp_path.iterdir()) == []
+    with pytest.raises(Exception, match="nothing to resume"):
+        Runner({**cfg, "resume": True}, tmp_path)._prepare_dir()
+
+
+def test_wrong_algorithm_dataset_pair_fails_at_start(env_vars, tmp_path):
+    proc = train(env_vars, tmp_path / "r", "task=UnitreeH1.walk.real", "algo=bc", check=False, timeout=120)
+    assert proc.returncode == 2
+    assert "BC cannot learn from a 'real' dataset" in proc.stderr
+    assert not (tmp_path / "r" / "UnitreeH1.walk.real" / "bc" / "seed0" / "checkpoint.pt").exists()
+
+
+def test_hydra_help_and_cfg(env_vars, tmp_path):
+    out = subprocess.run([sys.executable, "train.py", "task=Hopper.run.perfect", "algo=gail", "seed=3", "--cfg", "job",
+                          "--resolve"], cwd=ROOT, env=env_vars, capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert "task_id: Hopper.run.perfect" in out.stdout and "name: gail" in out.stdout and "seed: 3" in out.stdout
+    hlp = subprocess.run([sys.executable, "train.py", "--help"], cwd=ROOT, env=env_vars, capture_output=True,
+                         text=True, timeout=120)
+    assert hlp.returncode == 0 and "python train.py -m algo=bc,sqil" in hlp.stdout and "algo: " in hlp.stdout
+
+
+@pytest.mark.parametrize("launcher", ["joblib", "submitit_local"])
+def test_multirun_launchers(env_vars, tmp_path, launcher):
+    results = tmp_path / "results"
+    extra = ["hydra.launcher.n_jobs=2"] if launcher == "joblib" else ["hydra.launcher.timeout_min=10"]
+    train(env_vars, results, f"hydra/launcher={launcher}", *extra, "seed=0,1", "n_steps=10", "eval.every=10",
+          "eval.final_episodes=1", "eval.similarity=false", multirun=True)
+    for seed in (0, 1):
+        ev = json.loads((run_dir(results, seed=seed) / "eval.json").read_text())
+        assert ev["seed"] == seed and ev["steps"] == 10
