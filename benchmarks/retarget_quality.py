@@ -154,29 +154,48 @@ def render_mujoco(env, res, frame: int, offset: np.ndarray, size=(720, 960)) -> 
     return img
 
 
-def render_sticks(env, res, frame: int, offset: np.ndarray, path: Path, title: str) -> None:
+def render_sticks(env, res, frames, path: Path, title: str) -> None:
+    """Side views (x-z) of the source skeleton (grey) next to the robot (blue) at several frames; each pair
+    is drawn around its own hip centre, pairs left to right in time."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     kin = RobotKinematics(env)
-    kin.forward(res.qpos[frame])
     m, d = env.model, kin.data
-    fig, ax = plt.subplots(figsize=(6, 6))
-    for b in range(2, m.nbody):
-        p = m.body_parentid[b]
-        if p > 0:
-            ax.plot([d.xpos[p, 0], d.xpos[b, 0]], [d.xpos[p, 2], d.xpos[b, 2]], color="tab:blue", lw=3)
-    pts = kin.points()
-    ax.plot(pts[:, 0], pts[:, 2], "o", color="tab:blue", ms=4, label=f"{env.body_name} (retargeted)")
-    for i, (a, b) in enumerate(_human_segments(res.source_points, frame, offset)):
-        ax.plot([a[0], b[0]], [a[2], b[2]], color="grey", lw=3, label="source skeleton (scaled)" if i == 0 else None)
+    h = ROBOT_MAPS[env.body_name].height
+    fig, ax = plt.subplots(figsize=(2.4 * len(frames), 3.6))
+    for k, f in enumerate(frames):
+        x0 = k * 1.3 * h
+        hc_s = 0.5 * (res.source_points["l_hip"][f] + res.source_points["r_hip"][f])
+        shift_s = np.array([x0 - 0.28 * h - hc_s[0], 0.0, 0.0])
+        for i, (a, b) in enumerate(_human_segments(res.source_points, f, shift_s)):
+            ax.plot([a[0], b[0]], [a[2], b[2]], color="0.5", lw=2.5, solid_capstyle="round",
+                    label="source skeleton (scaled)" if k == i == 0 else None)
+        kin.forward(res.qpos[f])
+        hc_r = 0.5 * (res.robot_points["l_hip"][f] + res.robot_points["r_hip"][f])
+        dx = x0 + 0.28 * h - hc_r[0]
+        first = True
+        for b in range(1, m.nbody):
+            p = m.body_parentid[b]
+            if p > 0:
+                ax.plot([d.xpos[p, 0] + dx, d.xpos[b, 0] + dx], [d.xpos[p, 2], d.xpos[b, 2]], color="tab:blue", lw=2.5,
+                        solid_capstyle="round", label=f"{env.body_name} (retargeted)" if k == 0 and first else None)
+                first = False
+        pts = kin.points()
+        ax.plot(pts[:, 0] + dx, pts[:, 2], "o", color="tab:blue", ms=3)
+        for s_ in kin.sole:
+            w = kin._sole_world(s_)
+            ax.plot(w[:, 0] + dx, w[:, 2], ".", color="tab:green", ms=2)
+        ax.text(x0, -0.08 * h, f"t = {f * res.dt:.2f} s", ha="center", fontsize=8)
     ax.axhline(0.0, color="k", lw=0.8)
     ax.set_aspect("equal")
-    ax.set_xlabel("x (m)")
+    ax.set_ylim(-0.12 * h, 1.1 * h)
+    ax.set_yticks([0, round(h / 2, 1), round(h, 1)])
     ax.set_ylabel("z (m)")
-    ax.legend(loc="upper right", fontsize=8)
-    ax.set_title(title, fontsize=9)
+    ax.set_xticks([])
+    ax.legend(loc="upper right", fontsize=7, ncol=2)
+    ax.set_title(title, fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -189,9 +208,13 @@ def figure(body: str, task: str, frame: int, out: Path) -> Path:
     clip, n = load_motion(path, spec)
     res = retarget_clip(env, clip, n_cycles=min(n, 2))
     frame = min(frame, res.n_frames - 1)
+    cycle = int(round(clip.duration / res.dt))          # one gait cycle of the (looped) clip
+    frames = [min(res.n_frames - 1, frame + k * cycle // 5) for k in range(5)]
     height = ROBOT_MAPS[body].height
-    title = (f"{path.name} -> {body}, frame {frame}: keypoint error {res.metrics['keypoint_error_m'] * 100:.1f} cm, "
-             f"foot sliding {res.metrics['foot_sliding_mps'] * 100:.1f} cm/s")
+    title = (f"{path.name} -> {body} ({task}): keypoint error {res.metrics['keypoint_error_m'] * 100:.1f} cm, "
+             f"foot sliding {res.metrics['foot_sliding_mps'] * 100:.1f} cm/s, "
+             f"penetration {res.metrics['penetration_max_m'] * 100:.1f} cm, "
+             f"joints in limits {100 * res.metrics['in_limits_fraction']:.0f}% of frames")
     out.parent.mkdir(parents=True, exist_ok=True)
     try:
         import imageio.v2 as imageio
@@ -200,8 +223,8 @@ def figure(body: str, task: str, frame: int, out: Path) -> Path:
         imageio.imwrite(out, img)
         print(f"rendered with MuJoCo ({os.environ.get('MUJOCO_GL', 'default GL')}): {title}")
     except Exception as exc:                              # no OpenGL here: a stick figure instead
-        print(f"MuJoCo rendering unavailable ({type(exc).__name__}: {exc}); drawing a stick figure")
-        render_sticks(env, res, frame, np.array([-0.9 * height, 0.0, 0.0]), out, title)
+        print(f"MuJoCo rendering unavailable ({type(exc).__name__}: {exc}); drawing stick figures")
+        render_sticks(env, res, frames, out, title)
     print(f"wrote {out}")
     return out
 

@@ -1,23 +1,27 @@
 """IQ-Learn: Inverse soft-Q Learning (Garg et al., NeurIPS 2021, arXiv:2106.12142), online, chi^2.
 
+(Section names below are the paper's; equation numbers are deliberately not given because they
+were written from memory of the paper and could not be checked against its text here.)
+
 IQ-Learn learns a single soft Q-function whose *implicit reward* is given by the inverse soft
-Bellman operator (paper Sec. 4, Eq. 9):
+Bellman operator ("Inverse soft Q-learning" section):
 
     r_Q(s, a) = Q(s, a) - gamma * (1 - absorbing) * V^pi(s'),   V^pi(s) = E_{a~pi}[Q(s, a) - alpha log pi(a|s)].
 
-The critic maximizes (paper Eq. 10 with the telescoping trick of Sec. 5.1 / Eq. 13 that replaces
-(1-gamma) E_rho0[V(s0)] by E_rho[V(s) - gamma V(s')] for any state distribution rho):
+The critic maximizes the paper's objective
 
-    J(Q) = E_expert[ phi(r_Q(s, a)) ] - E_mix[ V(s) - gamma (1 - absorbing) V(s') ]
+    J(Q) = E_expert[ phi(r_Q(s, a)) ] - (1 - gamma) E_rho0[ V^pi(s0) ]
 
-with the chi^2 divergence, phi(x) = x - x^2 / (4 a_chi2) (paper Table 4 / Appendix; a_chi2 = 0.5).
-Variant implemented here (the paper's online variant, Sec. 5.1 "Online"):
-  * the value term uses the mixture of expert and agent samples ("value" loss, rho = mixture),
+where the initial-state term is replaced, by telescoping, with E_rho[V(s) - gamma V(s')] for the
+state distribution rho of any policy (the paper's "value" form of the loss, used for online
+learning), and, for the chi^2 divergence, phi(x) = x - x^2 / (4 a_chi2) with a_chi2 = 0.5.
+Variant implemented here (the paper's online setting):
+  * rho is the mixture of expert and agent samples ("value" loss on both),
   * the chi^2 penalty 1/(4 a_chi2) E[r_Q^2] is applied to expert AND agent samples (IQ-Learn's
-    online practice of regularizing on both; LS-IQ Sec. 3 analyses exactly this mixture regularizer),
-  * absorbing states have V(s_A) = 0 (the (1 - absorbing) mask), as in the original method.
-  * V(s') is taken from the online critic by default (`use_target=False`, the paper's objective is
-    a function of one Q); `use_target=True` bootstraps from the Polyak target critic instead.
+    online practice of regularizing on both; LS-IQ analyses exactly this mixture regularizer),
+  * absorbing states have V(s_A) = 0 (the (1 - absorbing) mask), as in the original method,
+  * V(s') is taken from the online critic by default (`use_target=False`: the objective is a
+    function of one Q); `use_target=True` bootstraps from the Polyak target critic instead.
 The twin critic trains each head on this objective separately (losses summed); the actor is SAC's.
 """
 from __future__ import annotations
@@ -37,7 +41,7 @@ def iq_critic_loss(q: torch.Tensor, v: torch.Tensor, v_next: torch.Tensor, absor
     chi2_coef = 1 / (4 a_chi2).
     """
     y_next = gamma * (1.0 - absorbing) * v_next
-    r = q - y_next                                       # implicit reward, Eq. 9
+    r = q - y_next                                       # implicit reward r_Q
     expert_term = -r[..., :n_expert].mean(-1)            # -E_expert[r_Q]
     value_term = (v - y_next).mean(-1)                   # E_mix[V(s) - gamma V(s')]
     r_reg = r if regularize_policy else r[..., :n_expert]

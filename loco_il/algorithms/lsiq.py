@@ -1,8 +1,8 @@
 """LS-IQ: Least-Squares Inverse Q-Learning (Al-Hafez, Tateo, Arenz, Zhao, Peters; ICLR 2023,
 arXiv:2303.00599), and its state-only variant LSIQ-fO with an inverse dynamics model.
 
-Derivation followed here (written out from the paper's Sec. 3; equation numbers are not cited
-because they could not be checked against the paper text while writing this):
+Derivation followed here (written out from the paper's method section; section and equation
+numbers are not cited because they could not be checked against the paper text while writing this):
 IQ-Learn's objective with the chi^2 regularizer taken under the mixture
 rho_mix = a rho_E + (1 - a) rho_pi,
 
@@ -15,7 +15,7 @@ is, after completing the squares, up to a constant equal to the negative least-s
 
 i.e. a squared Bellman-error regression of Q towards r_max + gamma V(s') on expert and
 r_min + gamma V(s') on agent transitions. Defaults c = 0.5, a = 0.5 give r_max = 2 = -r_min.
-Consequences used by the practical algorithm (paper Sec. 3-4):
+Consequences used by the practical algorithm (as we read the paper):
   * the optimal rewards lie in [r_min, r_max], so Q lies in [Q_min, Q_max] = [r_min, r_max] / (1 - gamma);
     the bootstrap value V(s') is clipped to that interval;
   * absorbing states: instead of IQ-Learn's V(s_A) = 0, the absorbing state keeps receiving its
@@ -26,13 +26,13 @@ Consequences used by the practical algorithm (paper Sec. 3-4):
 IQ-Learn's objective has E_pi[V(s) - gamma V(s')] where the derivation above has E_pi[r_Q]; the
 difference is the term E_pi[V(s) - Q(s, a)] (for actions of the current policy it is only the
 entropy bonus, for replayed actions of older policies it contrasts Q(s, a~pi) with Q(s, a_old)).
-It is kept by default (`value_term=True`, i.e. the exact IQ-Learn objective under the mixture
-regularizer): in our InvertedPendulum test the pure least-squares form (`value_term=False`)
-reached the expert return too but then oscillated.
+It is kept by default (`value_term=True`, i.e. IQ-Learn's value-form objective on agent samples
+under the mixture regularizer): in single-seed InvertedPendulum trials the pure least-squares
+form (`value_term=False`) reached the expert return too but then oscillated, this one stayed.
 UNCERTAIN (reported): the absorbing target per data source, the value term, and the IDM's
 training details; r_max/Q_max follow the derivation above with the brief's c = 0.5.
 
-LSIQ-fO (paper Sec. 5, "learning from observations"): an inverse dynamics model
+LSIQ-fO (the paper's learning-from-observations variant): an inverse dynamics model
 IDM(s, s') -> a is fit by regression on the agent's own replay transitions and labels the
 expert's state pairs with actions; everything else is LS-IQ.
 """

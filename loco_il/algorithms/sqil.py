@@ -1,6 +1,6 @@
 """SQIL: Soft Q Imitation Learning (Reddy, Dragan, Levine; ICLR 2020, arXiv:1905.11108).
 
-SQIL is plain soft Q-learning / SAC with a constant reward relabelling (paper Sec. 3, Algorithm 1):
+SQIL is plain soft Q-learning / SAC with a constant reward relabelling (the paper's method section and Algorithm 1):
 every demonstration transition gets reward 1, every transition of the agent reward 0, and each
 update uses equally many samples of both (the paper's lambda_samp = 1 with balanced batches), so
 the critic minimizes
@@ -8,7 +8,7 @@ the critic minimizes
     delta^2(D_demo, 1) + delta^2(D_samp, 0),
     delta^2(D, r) = E_D[(Q(s, a) - (r + gamma (1 - absorbing) V_target(s')))^2].
 
-The continuous-action version uses SAC (paper Sec. 4.3 / Appendix); here the SAC twin critic with
+For continuous actions the paper builds SQIL on SAC; here the SAC twin critic with
 V_target(s') = min_i Q_target_i(s', a') - alpha log pi(a'|s'), and each head regressed separately.
 """
 from __future__ import annotations

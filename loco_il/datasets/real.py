@@ -29,7 +29,6 @@ has one).
 from __future__ import annotations
 
 import hashlib
-import json
 import math
 import os
 import sys
@@ -40,7 +39,7 @@ from typing import Any, Iterable, Mapping, Optional, Sequence, Union
 
 import numpy as np
 
-from loco_il.datasets.trajectory import DatasetError, Trajectories
+from loco_il.datasets.trajectory import Trajectories
 from loco_il.datasets.providers.registry import (ProviderUnavailableError, register_real_provider,
                                                    registered_providers)
 
@@ -215,7 +214,8 @@ def retarget_task(env: Any, specs: Sequence[ClipSpec], paths: Sequence[Path], op
         if verbose:
             m = res.metrics
             _log(f"[loco_il.datasets] real {env.body_name}.{env.task_name}: {path.name} x{n_cycles} -> "
-                 f"{m['frames']} frames in {time.perf_counter() - t0:.1f}s; keypoint error {m['keypoint_error_m']:.3f} m, "
+                 f"{m['frames']} frames in {time.perf_counter() - t0:.1f}s; "
+                 f"keypoint error {m['keypoint_error_m']:.3f} m, "
                  f"foot sliding {m['foot_sliding_mps']:.3f} m/s, penetration {m['penetration_max_m']:.4f} m (max), "
                  f"joints in limits {100 * m['in_limits_fraction']:.1f}% of frames")
     env.reset()
@@ -333,7 +333,9 @@ def real_provider(env: Any, *, clips: Optional[Iterable[Any]] = None, options: A
 
 def _register() -> None:
     if "real" not in registered_providers():      # a user's provider registered earlier wins
-        register_real_provider(real_provider)
+        # quadrupeds get states from the simulated trot generator, humanoids from retargeted mocap
+        from loco_il.datasets.gait.provider import real_dispatcher
+        register_real_provider(real_dispatcher(real_provider))
 
 
 _register()

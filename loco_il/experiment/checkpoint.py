@@ -5,7 +5,8 @@ the previous checkpoint intact) holds::
 
     {"format": "loco_il.run_checkpoint/v1",
      "agent": agent.state_dict(),    # networks, optimizers, normalizers, counters, the agent's RNG states
-     "agent_extra": {"replay": ...}, # state the agent does not checkpoint itself (the replay memory)
+     "agent_extra": {"replay": ...}, # state the agent does not checkpoint itself: the replay memory
+                                     # (left out with `checkpoint_replay: false`; a resumed run refills it)
      "counters": {"step", "env_steps", "updates", "episodes", "n_evals", ...},
      "rng": {"python", "numpy", "torch"},            # global RNG states
      "env_rng": {...},                               # the training env's generator (resets, noise)
@@ -34,6 +35,7 @@ CHECKPOINT_NAME = "checkpoint.pt"
 
 #: keys of the run config that may change between a run and its resumption
 RESUMABLE_KEYS = frozenset({"resume", "stop_after_steps", "logger", "eval", "n_steps", "checkpoint_every",
+                            "checkpoint_replay",
                             "device", "torch_threads", "results_dir", "per_algo"})
 
 
@@ -73,11 +75,11 @@ def set_env_rng_state(env: Any, state: Mapping[str, Any] | None) -> None:
         env._episodes = state["episodes"]
 
 
-def agent_extra_state(agent: Any) -> dict[str, Any]:
+def agent_extra_state(agent: Any, include_replay: bool = True) -> dict[str, Any]:
     """State the agent's own `state_dict` leaves out: the replay memory of off-policy agents."""
     extra = {}
     replay = getattr(agent, "replay", None)
-    if replay is not None and hasattr(replay, "state_dict"):
+    if include_replay and replay is not None and hasattr(replay, "state_dict"):
         extra["replay"] = replay.state_dict()
     return extra
 
@@ -89,8 +91,10 @@ def load_agent_extra_state(agent: Any, extra: Mapping[str, Any]) -> None:
 
 def save_checkpoint(path: str | os.PathLike, *, agent: Any, env: Any, counters: Mapping[str, Any],
                     wall_time: float, config: Mapping[str, Any], wandb_id: str | None = None,
-                    finished: bool = False, extra: Mapping[str, Any] | None = None) -> None:
-    atomic_torch_save({"format": FORMAT, "agent": agent.state_dict(), "agent_extra": agent_extra_state(agent),
+                    finished: bool = False, extra: Mapping[str, Any] | None = None,
+                    include_replay: bool = True) -> None:
+    atomic_torch_save({"format": FORMAT, "agent": agent.state_dict(),
+                       "agent_extra": agent_extra_state(agent, include_replay),
                        "counters": dict(counters), "rng": global_rng_state(), "env_rng": env_rng_state(env),
                        "wall_time": float(wall_time), "config": dict(config), "wandb_id": wandb_id,
                        "finished": bool(finished), "extra": dict(extra or {})}, path)

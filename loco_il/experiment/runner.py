@@ -15,8 +15,9 @@
    `eval.json`, and prints the result table.
 
 Steps are env steps for online agents and gradient steps for offline ones (BC). A chunk never straddles an
-evaluation or checkpoint point, and is a multiple of `n_steps_per_fit` (so no collected transition is
-dropped); `Core.learn` resets the env at the start of every chunk.
+evaluation or checkpoint point; evaluation and checkpoint intervals are rounded up to multiples of
+`n_steps_per_fit`, so no collected transition is dropped (unless the budget itself is not a multiple).
+`Core.learn` resets the env at the start of every chunk.
 """
 from __future__ import annotations
 
@@ -148,7 +149,10 @@ class Runner:
         """(eval every, checkpoint every, unit): unit = n_steps_per_fit (online) or 1 (offline)."""
         from loco_il.algorithms import factory
         unit = 1 if self.offline else factory.steps_per_fit(self.algo_cfg)
-        every = self.eval_cfg.get("every") or max(1, budget // 10)
+        every = self.eval_cfg.get("every")
+        if not every:   # the algorithm's epoch (LocoMuJoCo evaluates once per epoch), at least 10 per run
+            epoch = (self.algo_cfg.get("core") or {}).get("n_steps_per_epoch")
+            every = min(int(epoch), max(1, budget // 10)) if epoch else max(1, budget // 10)
         ckpt = self.cfg.get("checkpoint_every") or every
         round_up = lambda n: max(unit, int(math.ceil(int(n) / unit)) * unit)  # noqa: E731
         return round_up(every), round_up(ckpt), unit
@@ -266,7 +270,8 @@ class Runner:
                 if step % ckpt_every == 0 or step == budget:
                     save_checkpoint(self.run_dir / CHECKPOINT_NAME, agent=agent, env=env, counters=counters,
                                     wall_time=clock(), config=c, wandb_id=logger.wandb_id,
-                                    extra={"train_returns": window["returns"]})
+                                    extra={"train_returns": window["returns"]},
+                                    include_replay=bool(c.get("checkpoint_replay", True)))
                 if stop_after is not None and step >= int(stop_after) and step < budget:
                     raise StopRequested(f"stop_after_steps={stop_after}: stopped at step {step}/{budget} "
                                         f"(re-run the same command to resume)")
@@ -276,7 +281,8 @@ class Runner:
             env.stop()
             eval_env.stop()
         save_checkpoint(self.run_dir / CHECKPOINT_NAME, agent=agent, env=env, counters=counters,
-                        wall_time=clock(), config=c, wandb_id=logger.wandb_id, finished=True)
+                        wall_time=clock(), config=c, wandb_id=logger.wandb_id, finished=True,
+                        include_replay=bool(c.get("checkpoint_replay", True)))
         self._print_table(result)
         return result
 

@@ -1,6 +1,7 @@
 """Soft Actor-Critic core shared by the off-policy imitation learners (IQ-Learn, LS-IQ, SQIL).
 
-SAC as in Haarnoja et al. 2018 ("Soft Actor-Critic Algorithms and Applications", arXiv:1812.05905):
+SAC as in Haarnoja et al. 2018 ("Soft Actor-Critic Algorithms and Applications", arXiv:1812.05905;
+equation numbers below are from memory of that paper and were not re-checked):
   * twin critic Q1, Q2 and a Polyak-averaged target copy                     (Sec. 5, Eq. 5-6)
   * actor loss  J_pi = E_s[ alpha log pi(a~|s) - min_i Q_i(s, a~) ],  a~ reparameterized (Eq. 7, 11)
   * temperature J(alpha) = E_a~pi[ -alpha (log pi(a|s) + target_entropy) ], target = -|A|   (Eq. 18)
