@@ -1,66 +1,49 @@
 """Learning tests of the off-policy IL agents (IQ-Learn, LS-IQ, LSIQ-fO, SQIL) on a cheap task.
 
-Task: Gymnasium's InvertedPendulum-v5 (return = steps survived, at most 1000) behind a tiny
-mushroom-rl style adapter (actions normalized to [-1, 1]). The expert is a hand-tuned linear
-state feedback controller that balances for the full 1000 steps; the demonstrations are 10 of its
-episodes. Every agent must reach >= 80 % of the expert return, evaluated with the deterministic
-policy, within a small budget of environment steps, with fixed seeds. A random/untrained policy
-scores ~5-30, so these tests fail when learning is broken.
-
-The lead's `loco_il.LocoEnv` (`InvertedPendulum.balance.perfect`) could replace the adapter once it
-exists; the adapter keeps these tests independent of the environment package.
+Task: the project's own `LocoEnv.make("InvertedPendulum.balance.perfect", seed=...)` (Gymnasium
+InvertedPendulum-v5's dynamics, reward and termination, checked step by step in
+tests/environments/test_classic_match_gymnasium.py; observation q_slider, q_hinge, dq_slider, dq_hinge;
+actions normalized to [-1, 1]; return = steps survived, at most 1000). The expert is a hand-tuned
+linear state feedback controller that balances for the full 1000 steps; the demonstrations are 10
+of its episodes. Every agent must reach >= 80 % of the expert return, evaluated with the
+deterministic policy, within a small budget of environment steps, with fixed seeds. A
+random/untrained policy scores ~5-30, so these tests fail when learning is broken.
 """
 from __future__ import annotations
 
 import time
 from types import SimpleNamespace
 
-import gymnasium as gym
 import numpy as np
 import pytest
 import torch
-from mushroom_rl.core import Core, MDPInfo
-from mushroom_rl.utils.spaces import Box
+from mushroom_rl.core import Core
 
+from loco_il import LocoEnv
 from loco_il.algorithms.common.networks import GaussianPolicy
 from loco_il.algorithms.iq_learn import IQLearn
 from loco_il.algorithms.lsiq import LSIQ, LSIQfO
 from loco_il.algorithms.sqil import SQIL
 
-ACTION_SCALE = 3.0                                  # InvertedPendulum-v5 force range is [-3, 3]
+ACTION_SCALE = 3.0                                  # force range [-3, 3] <-> normalized action [-1, 1]
 EXPERT_GAINS = np.array([1.0, 10.0, 1.0, 1.0])      # obs = [cart pos, pole angle, cart vel, pole ang. vel]
 EXPERT_NOISE = 0.2
 HORIZON = 1000
 
 
-class PendulumEnv:
-    """InvertedPendulum-v5 as a mushroom-rl Environment (reset/step/info/stop), actions in [-1, 1]."""
-
-    def __init__(self, seed: int):
-        self.env = gym.make("InvertedPendulum-v5")
-        obs_dim = self.env.observation_space.shape[0]
-        self.info = MDPInfo(Box(-np.inf * np.ones(obs_dim), np.inf * np.ones(obs_dim)),
-                            Box(-np.ones(1), np.ones(1)), gamma=0.99, horizon=HORIZON, dt=0.04)
-        self._seed = seed
-
-    def reset(self, state=None):
-        obs, _ = self.env.reset(seed=self._seed)
-        self._seed = None  # seed only the first episode; later ones continue the env's RNG stream
-        return obs.astype(np.float64)
-
-    def step(self, action):
-        obs, reward, terminated, _, _ = self.env.step(ACTION_SCALE * np.clip(action, -1.0, 1.0))
-        return obs.astype(np.float64), float(reward), bool(terminated), {}
-
-    def stop(self):
-        pass
+def make_env(seed: int):
+    """The pendulum task; `seed` seeds the env's RNG once, later resets continue its stream."""
+    env = LocoEnv.make("InvertedPendulum.balance.perfect", seed=seed)
+    assert tuple(env.obs_spec.names) == ("q_slider", "q_hinge", "dq_slider", "dq_hinge")
+    assert env.info.horizon == HORIZON
+    return env
 
 
 def expert_action(obs: np.ndarray) -> np.ndarray:
     return np.clip(np.array([EXPERT_GAINS @ obs]) / ACTION_SCALE, -1.0, 1.0)
 
 
-def rollout(env: PendulumEnv, act, n_episodes: int):
+def rollout(env, act, n_episodes: int):
     """Returns (list of episode returns, transitions dict)."""
     returns, rows = [], []
     for _ in range(n_episodes):
@@ -87,7 +70,7 @@ def make_expert_data(n_episodes: int = 10, seed: int = 123):
     """
     rng = np.random.default_rng(seed)
     act = lambda obs: np.clip(expert_action(obs) + EXPERT_NOISE * rng.standard_normal(1), -1.0, 1.0)  # noqa: E731
-    returns, d = rollout(PendulumEnv(seed=seed), act, n_episodes)
+    returns, d = rollout(make_env(seed), act, n_episodes)
     assert min(returns) == HORIZON, "the hand-tuned expert must balance for the whole episode"
     return SimpleNamespace(rewards=np.ones(len(d["obs"])), info={}, **d)
 
@@ -100,7 +83,7 @@ def expert_data():
 def evaluate(agent, n_episodes: int = 3, seed: int = 7) -> float:
     agent.deterministic = True
     try:
-        returns, _ = rollout(PendulumEnv(seed), agent.draw_action, n_episodes)
+        returns, _ = rollout(make_env(seed), agent.draw_action, n_episodes)
     finally:
         agent.deterministic = False
     return float(np.mean(returns))
@@ -126,7 +109,7 @@ def train(name: str, expert, seed: int = 0, n_steps: int | None = None):
     torch.set_num_threads(1)
     torch.manual_seed(seed)
     cls, extra = CASES[name]
-    env = PendulumEnv(seed=seed)
+    env = make_env(seed)
     policy = GaussianPolicy(4, 1, hidden=(64, 64), squash=True)
     agent = cls(env.info, policy, seed=seed, **COMMON, **extra)
     agent.set_expert(expert)

@@ -172,16 +172,28 @@ class ILAgent(Agent):
             return action
         return self._act(state)
 
-    @torch.no_grad()
+    @torch.inference_mode()
     def _act(self, state) -> np.ndarray:
-        obs = self.to_tensor(state).reshape(1, -1)
+        # the hot path of every environment step: no autograd bookkeeping, no distribution object
+        obs = torch.as_tensor(state if isinstance(state, np.ndarray) else np.asarray(state),
+                              dtype=torch.float32).reshape(1, -1)
+        if self.device.type != "cpu":
+            obs = obs.to(self.device)
         module = self.policy_module
-        dist = module.distribution(obs)
-        if self.deterministic:
-            pre = dist.loc
+        mean_log_std = getattr(module, "_mean_log_std", None)
+        if mean_log_std is not None:
+            loc, log_std = mean_log_std(obs)
+            scale = None if self.deterministic else log_std.exp()
         else:
-            noise = torch.randn(dist.loc.shape, generator=self.torch_generator).to(self.device)
-            pre = dist.loc + dist.scale * noise
+            dist = module.distribution(obs)
+            loc, scale = dist.loc, dist.scale
+        if self.deterministic:
+            pre = loc
+        else:
+            noise = torch.randn(loc.shape, generator=self.torch_generator)
+            if self.device.type != "cpu":
+                noise = noise.to(self.device)
+            pre = loc + scale * noise
         action = torch.tanh(pre) if getattr(module, "squash", False) else pre
         return action[0].cpu().numpy().astype(np.float64)
 

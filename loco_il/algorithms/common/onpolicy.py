@@ -38,8 +38,12 @@ class ObsNormalizedPolicy(nn.Module):
     def norm(self, obs: torch.Tensor) -> torch.Tensor:
         return self.normalizer(obs) if self.normalize else obs
 
+    def _mean_log_std(self, obs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Mean and log-std of the action distribution (draw_action uses this, with no distribution object)."""
+        return self.policy._mean_log_std(self.norm(obs))
+
     def distribution(self, obs: torch.Tensor) -> torch.distributions.Normal:
-        # built without argument validation: this runs once per environment step in draw_action
+        # built without argument validation
         mean, log_std = self.policy._mean_log_std(self.norm(obs))
         return torch.distributions.Normal(mean, log_std.exp(), validate_args=False)
 
@@ -130,10 +134,13 @@ def trpo_step(policy: nn.Module, obs: torch.Tensor, actions: torch.Tensor, advan
     if not torch.isfinite(grad).all() or grad.norm() < 1e-12:
         return info
 
+    # The parameters do not move during conjugate gradient, so the KL and its gradient graph are built
+    # once and every Fisher-vector product is one double-backward through that graph.
+    kl_graph = gaussian_kl(old_dist, policy.distribution(obs))
+    g_kl = parameters_to_vector(torch.autograd.grad(kl_graph, params, create_graph=True))
+
     def fisher_vector(v: torch.Tensor) -> torch.Tensor:
-        kl = gaussian_kl(old_dist, policy.distribution(obs))
-        g_kl = parameters_to_vector(torch.autograd.grad(kl, params, create_graph=True))
-        hv = parameters_to_vector(torch.autograd.grad(g_kl.dot(v), params))
+        hv = parameters_to_vector(torch.autograd.grad(g_kl.dot(v), params, retain_graph=True))
         return hv + cg_damping * v
 
     direction = conjugate_gradient(fisher_vector, grad, cg_iters, cg_residual_tol)
@@ -147,8 +154,12 @@ def trpo_step(policy: nn.Module, obs: torch.Tensor, actions: torch.Tensor, advan
         fraction = 1.0
         for _ in range(line_search_steps):
             vector_to_parameters(old_params + fraction * full_step, params)
-            new_surr = surrogate(policy, obs, actions, advantages, old_log_prob, ent_coef).item()
-            kl = gaussian_kl(old_dist, policy.distribution(obs)).item()
+            dist = policy.distribution(obs)  # one forward for both the surrogate and the KL
+            ratio = torch.exp(dist.log_prob(actions).sum(-1) - old_log_prob)
+            new_surr = (ratio * advantages).mean()
+            if ent_coef:
+                new_surr = new_surr + ent_coef * dist.entropy().sum(-1).mean()
+            new_surr, kl = new_surr.item(), gaussian_kl(old_dist, dist).item()
             if math.isfinite(new_surr) and kl <= max_kl and new_surr > info["surrogate"]:
                 info.update(accepted=fraction, kl=kl, improvement=new_surr - info["surrogate"])
                 return info

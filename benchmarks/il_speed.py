@@ -1,0 +1,234 @@
+"""Speed of the imitation-learning agents next to bare baselines, side by side in one process.
+
+Part 1 -- off-policy update cost. One `update()` of each SAC-based agent (IQ-Learn, LS-IQ, LSIQ-fO, SQIL)
+built from its `experiment_configs/algo/*.yaml` config ([256, 256] actor and critic, 256 agent + 256
+expert samples per update) against a bare PyTorch SAC update written out below with the same networks on
+the same 512 samples (replay gather, twin-critic MSE to a soft target, actor loss, temperature loss,
+Polyak step). Random data with Hopper's dimensions (obs 11, act 3). Timings after a warm-up, median of
+`--reps` blocks of `--updates` updates; the agents and the bare update alternate block by block, so
+machine load hits all of them alike. ratio = agent time / bare time (goal <= 1.2x).
+Note that the IL critics do inherently more work than SAC's: IQ-Learn and LS-IQ (value term) evaluate
+the critic also on (s, a~pi(s)) and IQ-Learn on (s', a'~pi) with gradient; LSIQ-fO trains an inverse
+dynamics model every update.
+
+Part 2 -- on-policy env throughput. Env steps/s of GAIL, VAIL and GAIfO driven by mushroom-rl's
+`Core.learn(n_steps, n_steps_per_fit)` on `Hopper.run.perfect` (draw_action per step, then every
+`n_steps_per_fit` steps the discriminator (every `train_disc_every`-th fit) and a TRPO step with the
+value-function fit), against the bare environment stepped with uniform random actions (resets
+included). ratio = agent steps/s / env steps/s (goal >= 0.7x).
+
+    python benchmarks/il_speed.py [--updates 20 --reps 5] [--onpolicy-fits 6] [--skip-offpolicy] [--skip-onpolicy]
+"""
+from __future__ import annotations
+
+import argparse
+import copy
+import math
+import statistics
+import time
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import torch
+import yaml
+from mushroom_rl.core import Core, MDPInfo
+from mushroom_rl.utils.spaces import Box
+from torch import nn
+
+from loco_il.algorithms.factory import build_agent
+from loco_il.algorithms.common.networks import GaussianPolicy, TwinQ
+
+ROOT = Path(__file__).resolve().parents[1]
+OBS_DIM, ACT_DIM = 11, 3  # Hopper
+
+
+def load_cfg(name: str) -> dict:
+    with open(ROOT / "experiment_configs" / "algo" / f"{name}.yaml") as fh:
+        return yaml.safe_load(fh)
+
+
+# ---------------------------------------------------------------------------- bare SAC
+class BareSAC:
+    """Minimal SAC update on preallocated replay tensors: the floor the agents are compared with."""
+
+    def __init__(self, n: int, batch: int, hidden=(256, 256), gamma=0.99, tau=0.005, lr=3e-4, seed=0):
+        g = torch.Generator().manual_seed(seed)
+        self.obs = torch.randn(n, OBS_DIM, generator=g)
+        self.next_obs = torch.randn(n, OBS_DIM, generator=g)
+        self.act = torch.rand(n, ACT_DIM, generator=g) * 2 - 1
+        self.rew = torch.randn(n, generator=g)
+        self.absorbing = (torch.rand(n, generator=g) < 0.01).float()
+        self.rng = np.random.default_rng(seed)
+        self.batch, self.gamma, self.tau = batch, gamma, tau
+        self.pi = GaussianPolicy(OBS_DIM, ACT_DIM, hidden, squash=True)
+        self.q = TwinQ(OBS_DIM, ACT_DIM, hidden)
+        self.q_targ = copy.deepcopy(self.q).requires_grad_(False)
+        self.log_alpha = torch.zeros((), requires_grad=True)
+        self.pi_opt = torch.optim.Adam(self.pi.parameters(), lr=lr)
+        self.q_opt = torch.optim.Adam(self.q.parameters(), lr=lr)
+        self.a_opt = torch.optim.Adam([self.log_alpha], lr=lr)
+        self.q_params, self.t_params = list(self.q.parameters()), list(self.q_targ.parameters())
+        self.target_entropy = -float(ACT_DIM)
+
+    def update(self) -> None:
+        idx = torch.as_tensor(self.rng.integers(0, len(self.obs), size=self.batch))
+        s, a, r, s2, d = self.obs[idx], self.act[idx], self.rew[idx], self.next_obs[idx], self.absorbing[idx]
+        alpha = self.log_alpha.detach().exp()
+        with torch.no_grad():
+            a2, logp2 = self.pi.sample(s2)
+            t1, t2 = self.q_targ(s2, a2)
+            y = r + self.gamma * (1 - d) * (torch.minimum(t1, t2) - alpha * logp2)
+        q1, q2 = self.q(s, a)
+        q_loss = (q1 - y).pow(2).mean() + (q2 - y).pow(2).mean()
+        self.q_opt.zero_grad(set_to_none=True)
+        q_loss.backward()
+        self.q_opt.step()
+        for p in self.q_params:
+            p.requires_grad_(False)
+        a_pi, logp = self.pi.sample(s)
+        p1, p2 = self.q(s, a_pi)
+        pi_loss = (alpha * logp - torch.minimum(p1, p2)).mean()
+        self.pi_opt.zero_grad(set_to_none=True)
+        pi_loss.backward()
+        self.pi_opt.step()
+        for p in self.q_params:
+            p.requires_grad_(True)
+        a_loss = -(self.log_alpha.exp() * (logp.detach() + self.target_entropy)).mean()
+        self.a_opt.zero_grad(set_to_none=True)
+        a_loss.backward()
+        self.a_opt.step()
+        with torch.no_grad():
+            torch._foreach_lerp_(self.t_params, self.q_params, self.tau)
+
+
+def random_mdp_info() -> MDPInfo:
+    return MDPInfo(Box(-np.inf * np.ones(OBS_DIM), np.inf * np.ones(OBS_DIM)),
+                   Box(-np.ones(ACT_DIM), np.ones(ACT_DIM)), gamma=0.99, horizon=1000, dt=0.008)
+
+
+def make_offpolicy_agent(name: str, n_replay: int, seed: int = 0):
+    cfg = load_cfg("lsiq" if name == "lsiqfo" else name)
+    cfg["name"] = name
+    cfg["params"]["replay_capacity"] = n_replay
+    agent = build_agent(name, random_mdp_info(), cfg, seed=seed)
+    rng = np.random.default_rng(seed)
+    n_exp = 10_000
+    expert = SimpleNamespace(obs=rng.standard_normal((n_exp, OBS_DIM)), next_obs=rng.standard_normal((n_exp, OBS_DIM)),
+                             actions=rng.uniform(-1, 1, (n_exp, ACT_DIM)), absorbing=rng.random(n_exp) < 0.01,
+                             last=np.zeros(n_exp, bool), rewards=np.zeros(n_exp), info={})
+    if name == "lsiqfo":
+        expert.actions = None
+    agent.set_expert(expert)
+    agent.replay.add(rng.standard_normal((n_replay, OBS_DIM)), rng.standard_normal((n_replay, OBS_DIM)),
+                     (rng.random(n_replay) < 0.01).astype(np.float32), rng.uniform(-1, 1, (n_replay, ACT_DIM)))
+    return agent
+
+
+def bench_offpolicy(names, updates: int, reps: int) -> dict[str, float]:
+    n_replay = 20_000
+    runners = {"bare SAC": BareSAC(n_replay, 512).update}
+    for name in names:
+        runners[name] = make_offpolicy_agent(name, n_replay).update
+    for fn in runners.values():  # warm-up
+        for _ in range(10):
+            fn()
+    times: dict[str, list[float]] = {k: [] for k in runners}
+    for _ in range(reps):
+        for key, fn in runners.items():
+            start = time.perf_counter()
+            for _ in range(updates):
+                fn()
+            times[key].append((time.perf_counter() - start) / updates)
+    med = {k: statistics.median(v) for k, v in times.items()}
+    base = med["bare SAC"]
+    print("\n## Off-policy: one update, [256, 256] networks, 256 agent + 256 expert samples "
+          f"(bare SAC: batch 512), median of {reps} x {updates} updates, 1 thread")
+    print(f"{'agent':<10}{'ms/update':>11}{'ratio':>8}  (goal <= 1.2x)")
+    for k, v in med.items():
+        print(f"{k:<10}{1e3 * v:>11.2f}{v / base:>8.2f}")
+    return med
+
+
+# ---------------------------------------------------------------------------- on-policy
+def bench_env(env, n_steps: int, seed: int = 0) -> float:
+    rng = np.random.default_rng(seed)
+    env.seed(seed)
+    env.reset()
+    horizon = env.info.horizon
+    actions = rng.uniform(-1, 1, (n_steps, ACT_DIM))
+    t_ep = 0
+    start = time.perf_counter()
+    for a in actions:
+        _, _, absorbing, _ = env.step(a)
+        t_ep += 1
+        if absorbing or t_ep >= horizon:
+            env.reset()
+            t_ep = 0
+    return n_steps / (time.perf_counter() - start)
+
+
+def bench_onpolicy(names, n_fits: int, reps: int, expert) -> None:
+    from loco_il import LocoEnv
+    env = LocoEnv.make("Hopper.run.perfect")
+    rows = []
+    rates: dict[str, list[float]] = {"bare env": []}
+    cores = {}
+    for name in names:
+        cfg = load_cfg(name)
+        agent = build_agent(name, env.info, cfg, seed=0)
+        agent.set_expert(expert)
+        spf = int(cfg["core"]["n_steps_per_fit"])
+        cores[name] = (Core(agent, env), spf)
+        rates[name] = []
+    for name, (core, spf) in cores.items():  # warm-up: one fit each
+        core.learn(n_steps=spf, n_steps_per_fit=spf, quiet=True)
+    bench_env(env, 2000)
+    for _ in range(reps):
+        for name, (core, spf) in cores.items():
+            n = n_fits * spf
+            start = time.perf_counter()
+            core.learn(n_steps=n, n_steps_per_fit=spf, quiet=True)
+            rates[name].append(n / (time.perf_counter() - start))
+        rates["bare env"].append(bench_env(env, n_fits * 1024))
+    med = {k: statistics.median(v) for k, v in rates.items()}
+    base = med["bare env"]
+    print(f"\n## On-policy: env steps/s on Hopper.run.perfect, Core.learn with n_steps_per_fit from the configs, "
+          f"{n_fits} fits per block, median of {reps} blocks, 1 thread")
+    print(f"{'agent':<10}{'steps/s':>10}{'ratio':>8}  (goal >= 0.7x)")
+    for k, v in med.items():
+        print(f"{k:<10}{v:>10.0f}{v / base:>8.2f}")
+    rows.append(med)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--updates", type=int, default=20)
+    parser.add_argument("--reps", type=int, default=5)
+    parser.add_argument("--offpolicy", nargs="*", default=["iqlearn", "lsiq", "lsiqfo", "sqil"])
+    parser.add_argument("--onpolicy", nargs="*", default=["gail", "vail", "gaifo"])
+    parser.add_argument("--onpolicy-fits", type=int, default=6, help="fits per timed block (6 = 2 disc steps)")
+    parser.add_argument("--onpolicy-reps", type=int, default=3)
+    parser.add_argument("--random-expert", action="store_true",
+                        help="on-policy part: random expert data of Hopper's shape instead of the cached dataset")
+    args = parser.parse_args()
+    torch.set_num_threads(1)
+    torch.manual_seed(0)
+    print(f"torch {torch.__version__}, threads {torch.get_num_threads()}")
+    if args.offpolicy:
+        bench_offpolicy(args.offpolicy, args.updates, args.reps)
+    if args.onpolicy:
+        if args.random_expert:
+            rng = np.random.default_rng(0)
+            n = 20_000
+            expert = SimpleNamespace(obs=rng.standard_normal((n, OBS_DIM)), next_obs=rng.standard_normal((n, OBS_DIM)),
+                                     actions=rng.uniform(-1, 1, (n, ACT_DIM)), absorbing=np.zeros(n, bool),
+                                     last=np.zeros(n, bool), rewards=np.zeros(n), info={})
+        else:
+            from loco_il import LocoEnv
+            expert = LocoEnv.make("Hopper.run.perfect").create_dataset(verbose=False)
+        bench_onpolicy(args.onpolicy, args.onpolicy_fits, args.onpolicy_reps, expert)
+
+
+if __name__ == "__main__":
+    main()
