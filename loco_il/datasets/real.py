@@ -39,6 +39,7 @@ from typing import Any, Iterable, Mapping, Optional, Sequence, Union
 
 import numpy as np
 
+from loco_il.utils.hashing import file_sha256
 from loco_il.datasets.trajectory import Trajectories
 from loco_il.datasets.providers.registry import (ProviderUnavailableError, register_real_provider,
                                                    registered_providers)
@@ -146,14 +147,6 @@ def load_motion(path: Union[str, os.PathLike], spec: Optional[ClipSpec] = None):
         if spec.duration and clip.loop and clip.duration > 0:
             n_cycles = max(1, math.ceil(spec.duration / clip.duration))
     return clip, n_cycles
-
-
-def _sha256(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
 
 
 def _model_fingerprint(model: Any) -> str:
@@ -286,7 +279,7 @@ def real_provider(env: Any, *, clips: Optional[Iterable[Any]] = None, options: A
     try:
         fields = {
             "generator": REAL_GENERATOR_VERSION, "retarget": RETARGET_VERSION, "task": key, "dataset_type": "real",
-            "clips": [dict(asdict(s), sha256=_sha256(p)) for s, p in zip(specs, paths)],
+            "clips": [dict(asdict(s), sha256=file_sha256(p)) for s, p in zip(specs, paths)],
             "options": opts.key(), "model": _model_fingerprint(gen_env.model), "mujoco": mujoco.__version__,
             "map": repr(ROBOT_MAPS[env.body_name]),
         }

@@ -14,7 +14,6 @@ Sources (all reachable without anything but PyPI):
 """
 from __future__ import annotations
 
-import hashlib
 import importlib.util
 import os
 import shutil
@@ -23,6 +22,8 @@ import sys
 import tarfile
 import tempfile
 from pathlib import Path
+
+from loco_il.utils.hashing import file_sha256
 
 LOCOMUJOCO_SDIST = "loco-mujoco-0.4.1.tar.gz"
 LOCOMUJOCO_SHA256 = "44776fdd4e4d504a4dc933c90f0ccc68816e91efb5ffb2bcea7d06dbc5daa940"
@@ -73,14 +74,6 @@ def gymnasium_asset(filename: str) -> Path:
 
 
 # ---------------------------------------------------------------- LocoMuJoCo 0.4.1 sdist
-def _sha256(path: Path) -> str:
-    digest = hashlib.sha256()
-    with open(path, "rb") as handle:
-        for block in iter(lambda: handle.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
-
-
 def _download_locomujoco_sdist(target_dir: Path) -> Path:
     _say(f"downloading {LOCOMUJOCO_SDIST} (29.6 MB) from PyPI with pip, once, for its robot models ...")
     cmd = [sys.executable, "-m", "pip", "download", "--no-deps", "--disable-pip-version-check", "-q",
@@ -107,7 +100,7 @@ def locomujoco_root() -> Path:
         archive = Path(given) if given else _download_locomujoco_sdist(Path(tmp))
         if not archive.exists():
             raise AssetError(f"LOCO_IL_LOCOMUJOCO_SDIST points to {archive}, which does not exist")
-        digest = _sha256(archive)
+        digest = file_sha256(archive)
         if digest != LOCOMUJOCO_SHA256:
             raise AssetError(f"{archive} has sha256 {digest}, expected {LOCOMUJOCO_SHA256}: refusing to use it")
         _say(f"verified sha256; extracting model folders {', '.join(LOCOMUJOCO_FOLDERS)} into {root}")
