@@ -158,7 +158,8 @@ def format_eval_table(results: Sequence[Mapping[str, Any]]) -> str:
         ret = f"{r['return_mean']:.2f} ± {r['return_std']:.2f}"
         lines.append("| " + " | ".join([r.get("task", "?"), r.get("dataset_type", "?"), r.get("name", "?"),
                                         str(r.get("seed", "?")), str(r.get("steps", "?")), str(r.get("episodes")),
-                                        ret, _fmt(r.get("normalized_score"), 3), _fmt(sim.get("nn_distance"), 3),
+                                        ret, "n/a" if r.get("normalized_score") is None else f"{r['normalized_score']:.3f}",
+                                        _fmt(sim.get("nn_distance"), 3),
                                         _fmt(sim.get("mmd"), 3)]) + " |")
     notes = sorted({r["normalized_score_note"] for r in results if r.get("normalized_score_note")})
     return "\n".join(lines + [f"\nNote: {n}" for n in notes])

@@ -67,10 +67,10 @@ def csv_rows(path: Path) -> list[dict]:
 
 
 def test_end_to_end_train_evaluate_and_rerun(env_vars, tmp_path):
-    """Default task and algorithm (BC) with a tiny budget: every run file, a learned policy, the printed
+    """The default task with BC and a tiny budget: every run file, a learned policy, the printed
     table; `python -m loco_il.evaluation` scores it; re-running the finished command does not train again."""
     results = tmp_path / "results"
-    proc = train(env_vars, results, "n_steps=300", "eval.every=100")
+    proc = train(env_vars, results, "algo=bc", "n_steps=300", "eval.every=100")
     d = run_dir(results)
     for name in ("config.yaml", "log.csv", "log.jsonl", "checkpoint.pt", "final_agent.pt", "eval.json"):
         assert (d / name).is_file(), f"missing {name}; run dir holds {sorted(p.name for p in d.iterdir())}"
@@ -105,11 +105,11 @@ def test_end_to_end_train_evaluate_and_rerun(env_vars, tmp_path):
     assert "| InvertedPendulum.balance | perfect | bc |" in score.stdout
 
     mtime = (d / "final_agent.pt").stat().st_mtime_ns
-    again = train(env_vars, results, "n_steps=300", "eval.every=100")
+    again = train(env_vars, results, "algo=bc", "n_steps=300", "eval.every=100")
     assert "already finished" in again.stdout
     assert (d / "final_agent.pt").stat().st_mtime_ns == mtime
     # the same run dir with another configuration is refused, naming the difference and the way out
-    other = train(env_vars, results, "n_steps=300", "eval.every=100", "algo.params.lr=0.01", check=False)
+    other = train(env_vars, results, "algo=bc", "n_steps=300", "eval.every=100", "algo.params.lr=0.01", check=False)
     assert other.returncode == 2, other.stderr[-2000:]
     assert "algo.params.lr: 0.0003 -> 0.01" in other.stderr and "resume=false" in other.stderr
     assert (d / "final_agent.pt").stat().st_mtime_ns == mtime
@@ -146,7 +146,7 @@ def test_stopped_run_resumes_to_the_same_result(env_vars, tmp_path):
 def test_killed_run_resumes(env_vars, tmp_path):
     """SIGKILL once the first checkpoint exists; the same command finishes the run with the full budget."""
     results = tmp_path / "results"
-    args = ["n_steps=2000", "eval.every=500", "checkpoint_every=100"]
+    args = ["algo=bc", "n_steps=2000", "eval.every=500", "checkpoint_every=100"]
     cmd = [sys.executable, "train.py", f"results_dir={results}", *FAST, *args]
     proc = subprocess.Popen(cmd, cwd=ROOT, env=env_vars, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     ckpt = run_dir(results) / "checkpoint.pt"
@@ -201,7 +201,7 @@ def test_hydra_help_and_cfg(env_vars, tmp_path):
 def test_multirun_launchers(env_vars, tmp_path, launcher):
     results = tmp_path / "results"
     extra = ["hydra.launcher.n_jobs=2"] if launcher == "joblib" else ["hydra.launcher.timeout_min=10"]
-    train(env_vars, results, f"hydra/launcher={launcher}", *extra, "seed=0,1", "n_steps=10", "eval.every=10",
+    train(env_vars, results, f"hydra/launcher={launcher}", *extra, "algo=bc", "seed=0,1", "n_steps=10", "eval.every=10",
           "eval.final_episodes=1", "eval.similarity=false", multirun=True)
     for seed in (0, 1):
         ev = json.loads((run_dir(results, seed=seed) / "eval.json").read_text())
