@@ -33,11 +33,11 @@ LOCOMUJOCO_FOLDERS = ("atlas", "talos", "unitree_h1", "unitree_g1", "quadrupeds"
 
 LICENCES: dict[str, str] = {
     "gymnasium": "MIT (Gymnasium's MuJoCo assets)",
-    "locomujoco/atlas": "Atlas model from drcsim via Roboti (Apache-2.0 per drcsim); LocoMuJoCo code MIT",
+    "locomujoco/atlas": "Atlas model: (c) 2009-2016 Roboti LLC, from OSRF drcsim (see the model file header); distributed in LocoMuJoCo (MIT); fetched at run time, never shipped",
     "locomujoco/talos": "CC BY-NC-ND 4.0 (PAL Robotics) - non-commercial, no derivatives: fetched at run time, never shipped",
     "locomujoco/unitree_h1": "BSD-3-Clause (Unitree Robotics)",
     "locomujoco/unitree_g1": "BSD-3-Clause (Unitree Robotics)",
-    "locomujoco/quadrupeds": "BSD-3-Clause / MPL-2.0 (Unitree A1 via MuJoCo Menagerie)",
+    "locomujoco/quadrupeds": "Unitree A1 as distributed in LocoMuJoCo (MIT packaging; Unitree model, BSD-3-Clause in MuJoCo Menagerie)",
     "locomujoco/humanoid": "MIT (LocoMuJoCo's torque and muscle humanoids, derived from OpenSim Gait2392 models)",
     "menagerie/unitree_h1": "BSD-3-Clause (Unitree Robotics), MuJoCo Menagerie",
     "menagerie/unitree_g1": "BSD-3-Clause (Unitree Robotics), MuJoCo Menagerie",
