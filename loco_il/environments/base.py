@@ -185,6 +185,7 @@ class LocoEnv(Environment):
                 self._init_qpos[adr:adr + self._init_pose[name].size] = self._init_pose[name]
         self._root_body = int(self.model.jnt_bodyid[0]) if self.model.njnt else 1
         self._root_xy_idx, self._root_xy_proj = root_xy_projection(self.model)
+        self._mass_fraction = self.model.body_mass / self.model.body_mass.sum()
         self._point_body = (mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, self.task.velocity_point)
                             if self.task.velocity_point not in ("root", "com") else self._root_body)
         if getattr(self, "_renderer", None) is not None:   # the renderer is bound to the old model
@@ -277,7 +278,7 @@ class LocoEnv(Environment):
         """Horizontal position whose finite difference over a step is the task's velocity."""
         point = self.task.velocity_point
         if point == "com":
-            return (self.model.body_mass @ self.data.xipos)[:2] / self.model.body_mass.sum()
+            return self._mass_fraction @ self.data.xipos[:, :2]
         if point == "root" and self._root_xy_idx.size:
             return self._root_xy_proj @ self.data.qpos[self._root_xy_idx]
         return self.data.xpos[self._point_body, :2].copy()

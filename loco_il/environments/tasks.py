@@ -20,7 +20,7 @@ import mujoco
 import numpy as np
 
 
-@dataclass
+@dataclass(slots=True)
 class StepContext:
     """What a reward or termination may look at after one env step."""
 
@@ -87,16 +87,17 @@ class GymLocomotionReward:
     contact_cost_max: float = np.inf
 
     def __call__(self, ctx: StepContext) -> tuple[float, dict[str, float]]:
-        vx = float(ctx.xy_velocity[0])
+        vx = float(ctx.xy_after[0] - ctx.xy_before[0]) / ctx.dt
         forward = self.forward_weight * vx
         healthy = self.healthy_reward * float(ctx.healthy)
-        ctrl = self.ctrl_cost_weight * float(np.square(ctx.data.ctrl).sum())
+        ctrl_vec = ctx.data.ctrl
+        ctrl = self.ctrl_cost_weight * float(ctrl_vec @ ctrl_vec)
         contact = 0.0
         if self.contact_cost_weight:
-            forces = ctx.data.cfrc_ext
+            forces = ctx.data.cfrc_ext.ravel()
             if self.contact_force_clip is not None:
-                forces = np.clip(forces, *self.contact_force_clip)
-            contact = min(self.contact_cost_weight * float(np.square(forces).sum()), self.contact_cost_max)
+                forces = forces.clip(*self.contact_force_clip)
+            contact = min(self.contact_cost_weight * float(forces @ forces), self.contact_cost_max)
         terms = {"forward": forward, "healthy": healthy, "ctrl_cost": -ctrl, "contact_cost": -contact,
                  "x_velocity": vx}
         return forward + healthy - ctrl - contact, terms
@@ -151,9 +152,8 @@ class HeightHealthy:
     inclusive: bool = False
 
     def __call__(self, ctx: StepContext) -> bool:
+        # (Gymnasium also requires a finite state; LocoEnv ends diverged, non-finite episodes before this)
         z = ctx.data.qpos[2]
-        if not (np.isfinite(ctx.data.qpos).all() and np.isfinite(ctx.data.qvel).all()):
-            return True
         lo, hi = self.z_range
         ok = lo <= z <= hi if self.inclusive else lo < z < hi
         return not ok
