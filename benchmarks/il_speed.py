@@ -65,9 +65,10 @@ class BareSAC:
         self.q = TwinQ(OBS_DIM, ACT_DIM, hidden)
         self.q_targ = copy.deepcopy(self.q).requires_grad_(False)
         self.log_alpha = torch.zeros((), requires_grad=True)
-        self.pi_opt = torch.optim.Adam(self.pi.parameters(), lr=lr)
-        self.q_opt = torch.optim.Adam(self.q.parameters(), lr=lr)
-        self.a_opt = torch.optim.Adam([self.log_alpha], lr=lr)
+        # foreach=True as in SACCore, so that the ratio measures the agents' overheads, not the optimizer kind
+        self.pi_opt = torch.optim.Adam(self.pi.parameters(), lr=lr, foreach=True)
+        self.q_opt = torch.optim.Adam(self.q.parameters(), lr=lr, foreach=True)
+        self.a_opt = torch.optim.Adam([self.log_alpha], lr=lr, foreach=True)
         self.q_params, self.t_params = list(self.q.parameters()), list(self.q_targ.parameters())
         self.target_entropy = -float(ACT_DIM)
 
@@ -191,13 +192,33 @@ def bench_onpolicy(names, n_fits: int, reps: int, expert) -> None:
             core.learn(n_steps=n, n_steps_per_fit=spf, quiet=True)
             rates[name].append(n / (time.perf_counter() - start))
         rates["bare env"].append(bench_env(env, n_fits * 1024))
+    # breakdown: the per-step cost of draw_action alone next to env.step, and the fit cost per env step
+    obs = env.reset()
+    act_us = {}
+    for name, (core, spf) in cores.items():
+        agent = core.agent
+        t = []
+        for _ in range(5):
+            start = time.perf_counter()
+            for _ in range(200):
+                agent.draw_action(obs)
+            t.append((time.perf_counter() - start) / 200)
+        act_us[name] = 1e6 * statistics.median(t)
     med = {k: statistics.median(v) for k, v in rates.items()}
     base = med["bare env"]
+    env_us = 1e6 / base
     print(f"\n## On-policy: env steps/s on Hopper.run.perfect, Core.learn with n_steps_per_fit from the configs, "
           f"{n_fits} fits per block, median of {reps} blocks, 1 thread")
     print(f"{'agent':<10}{'steps/s':>10}{'ratio':>8}  (goal >= 0.7x)")
     for k, v in med.items():
         print(f"{k:<10}{v:>10.0f}{v / base:>8.2f}")
+    print(f"\nper env step: env.step {env_us:.0f} us (random actions, resets included)")
+    print(f"{'agent':<10}{'draw_action us':>16}{'fit us/step':>13}{'bound w/o fit':>15}")
+    for name, a in act_us.items():
+        total_us = 1e6 / med[name]
+        fit_us = max(0.0, total_us - env_us - a)
+        print(f"{name:<10}{a:>16.0f}{fit_us:>13.0f}{env_us / (env_us + a):>15.2f}")
+    print("(fit us/step = 1/steps_per_s - env.step - draw_action; 'bound w/o fit' = the ratio a free fit would give)")
     rows.append(med)
 
 
