@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import argparse
 import copy
-import math
 import statistics
 import time
 from pathlib import Path
@@ -34,7 +33,6 @@ import torch
 import yaml
 from mushroom_rl.core import Core, MDPInfo
 from mushroom_rl.utils.spaces import Box
-from torch import nn
 
 from loco_il.algorithms.factory import build_agent
 from loco_il.algorithms.common.networks import GaussianPolicy, TwinQ
