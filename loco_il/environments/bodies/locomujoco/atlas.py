@@ -20,10 +20,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from loco_il.environments.assets import LICENCES
-from loco_il.environments.body import Body
-from loco_il.environments.bodies.locomujoco.common import (CONTROL_DT, DATASETS, STAND_KEY, TIMESTEP, RootJointFall,
-                                                           add_keyframe, humanoid_tasks, loader, slide_to_height)
+from loco_il.environments.bodies.locomujoco.common import (STAND_KEY, RootJointFall, add_keyframe, humanoid_tasks,
+                                                           locomujoco_body, pelvis_bounds, slide_to_height)
 from loco_il.environments.registry import register_body
 
 MODEL = "atlas/atlas.xml"
@@ -37,9 +35,7 @@ REMOVED_ACTUATORS = tuple(f"{j}_actuator" for j in REMOVED_JOINTS)
 
 TERMINATION = RootJointFall(
     height_range=slide_to_height(PELVIS_Z, (-0.3, 0.1)),
-    joint_bounds=(("pelvis_tilt", -np.pi / 4.5, np.pi / 12),
-                  ("pelvis_list", -np.pi / 12, np.pi / 8),
-                  ("pelvis_rotation", -np.pi / 10, np.pi / 10)))
+    joint_bounds=pelvis_bounds(np.pi / 10))
 
 STAND_POSE = {"pelvis_ty": -0.0046, "pelvis_tilt": -0.04, "ankle_angle_l": 0.04, "ankle_angle_r": 0.04}
 
@@ -48,11 +44,7 @@ def _edit(spec) -> None:
     add_keyframe(spec, STAND_POSE, STAND_KEY)
 
 
-ATLAS = Body(
-    name="Atlas", load_spec=loader(MODEL), tasks=humanoid_tasks(TERMINATION, run=False, robot="Atlas"),
-    default_task="walk", datasets=DATASETS, default_dataset="real", family="humanoid",
-    joints_to_remove=REMOVED_JOINTS, actuators_to_remove=REMOVED_ACTUATORS,
-    control_dt=CONTROL_DT, timestep=TIMESTEP, init_keyframe=STAND_KEY, licence=LICENCES["locomujoco/atlas"],
-    source=f"loco-mujoco 0.4.1 environments/data/{MODEL}", spec_edit=_edit, pomdp_hide=("velocities",))
+ATLAS = locomujoco_body("Atlas", MODEL, humanoid_tasks(TERMINATION, run=False, robot="Atlas"), "locomujoco/atlas",
+                        _edit, joints_to_remove=REMOVED_JOINTS, actuators_to_remove=REMOVED_ACTUATORS)
 
 register_body(ATLAS)

@@ -19,12 +19,13 @@ Start state. LocoMuJoCo starts from dataset states; the models have no keyframe.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 import mujoco
 import numpy as np
 
-from loco_il.environments.assets import locomujoco_asset
+from loco_il.environments.assets import LICENCES, locomujoco_asset
+from loco_il.environments.body import Body
 from loco_il.environments.tasks import StepContext, Task, TargetVelocityReward
 
 TIMESTEP = 0.001        # LocoMuJoCo LocoEnv(timestep=0.001)
@@ -98,11 +99,23 @@ def set_body_quats(spec: mujoco.MjSpec, quats: Mapping[str, Sequence[float]]) ->
         body.quat = np.asarray(quat, dtype=float)
 
 
-def chain(*edits: Callable[[mujoco.MjSpec], None]) -> Callable[[mujoco.MjSpec], None]:
-    def edit(spec: mujoco.MjSpec) -> None:
-        for fn in edits:
-            fn(spec)
-    return edit
+def pelvis_bounds(rotation: float) -> tuple[tuple[str, float, float], ...]:
+    """The pelvis tilt/list bounds every LocoMuJoCo humanoid shares, plus its own yaw (rotation) bound."""
+    return (("pelvis_tilt", -np.pi / 4.5, np.pi / 12),
+            ("pelvis_list", -np.pi / 12, np.pi / 8),
+            ("pelvis_rotation", -rotation, rotation))
+
+
+def locomujoco_body(name: str, model: str, tasks: Mapping[str, Task], licence_key: str,
+                    spec_edit: Callable[[mujoco.MjSpec], None], **fields: Any) -> Body:
+    """A `Body` with the settings all LocoMuJoCo robots share (timestep, 100 Hz control, datasets,
+    the "stand" keyframe); `fields` sets the rest (family, default_task, removed joints, ...)."""
+    fields.setdefault("family", "humanoid")
+    fields.setdefault("default_task", "walk")
+    return Body(name=name, load_spec=loader(model), tasks=tasks, datasets=DATASETS, default_dataset="real",
+                control_dt=CONTROL_DT, timestep=TIMESTEP, init_keyframe=STAND_KEY,
+                licence=LICENCES[licence_key], source=f"loco-mujoco 0.4.1 environments/data/{model}",
+                spec_edit=spec_edit, pomdp_hide=("velocities",), **fields)
 
 
 def humanoid_tasks(termination: RootJointFall, run: bool, robot: str) -> dict[str, Task]:

@@ -35,10 +35,9 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from loco_il.environments.assets import LICENCES
 from loco_il.environments.body import Body
-from loco_il.environments.bodies.locomujoco.common import (CONTROL_DT, DATASETS, STAND_KEY, TIMESTEP, RootJointFall,
-                                                           add_keyframe, humanoid_tasks, loader, set_body_quats,
+from loco_il.environments.bodies.locomujoco.common import (STAND_KEY, RootJointFall, add_keyframe, humanoid_tasks,
+                                                           locomujoco_body, pelvis_bounds, set_body_quats,
                                                            slide_to_height)
 from loco_il.environments.registry import register_body
 
@@ -61,9 +60,7 @@ OLD_FOOT_GEOMS = ("r_foot", "r_bofoot", "l_foot", "l_bofoot")
 
 TERMINATION = RootJointFall(
     height_range=slide_to_height(PELVIS_Z, (-0.46, 0.1)),
-    joint_bounds=(("pelvis_tilt", -np.pi / 4.5, np.pi / 12),
-                  ("pelvis_list", -np.pi / 12, np.pi / 8),
-                  ("pelvis_rotation", -np.pi / 9, np.pi / 9),
+    joint_bounds=pelvis_bounds(np.pi / 9) + (
                   ("lumbar_extension", -np.pi / 4, np.pi / 10),
                   ("lumbar_bending", -np.pi / 10, np.pi / 10),
                   ("lumbar_rotation", -np.pi / 4.5, np.pi / 4.5)))
@@ -92,12 +89,8 @@ def _edit(spec: mujoco.MjSpec) -> None:
 
 
 def _humanoid(name: str, model: str, actuators_to_remove: tuple[str, ...]) -> Body:
-    return Body(
-        name=name, load_spec=loader(model), tasks=humanoid_tasks(TERMINATION, run=True, robot=name),
-        default_task="walk", datasets=DATASETS, default_dataset="real", family="humanoid",
-        joints_to_remove=REMOVED_JOINTS, actuators_to_remove=actuators_to_remove,
-        control_dt=CONTROL_DT, timestep=TIMESTEP, init_keyframe=STAND_KEY, licence=LICENCES["locomujoco/humanoid"],
-        source=f"loco-mujoco 0.4.1 environments/data/{model}", spec_edit=_edit, pomdp_hide=("velocities",))
+    return locomujoco_body(name, model, humanoid_tasks(TERMINATION, run=True, robot=name), "locomujoco/humanoid",
+                           _edit, joints_to_remove=REMOVED_JOINTS, actuators_to_remove=actuators_to_remove)
 
 
 HUMANOID_TORQUE = _humanoid("HumanoidTorque", "humanoid/humanoid_torque.xml", FOOT_MOTORS + ARM_MOTORS)

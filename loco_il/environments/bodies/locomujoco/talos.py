@@ -22,10 +22,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from loco_il.environments.assets import LICENCES
-from loco_il.environments.body import Body
-from loco_il.environments.bodies.locomujoco.common import (CONTROL_DT, DATASETS, STAND_KEY, TIMESTEP, RootJointFall,
-                                                           add_keyframe, humanoid_tasks, loader, set_body_quats,
+from loco_il.environments.bodies.locomujoco.common import (STAND_KEY, RootJointFall, add_keyframe, humanoid_tasks,
+                                                           locomujoco_body, pelvis_bounds, set_body_quats,
                                                            slide_to_height)
 from loco_il.environments.registry import register_body
 
@@ -39,9 +37,7 @@ ARM_QUATS = {"arm_right_4_link": (1.0, 0.0, -0.25, 0.0), "arm_left_4_link": (1.0
 
 TERMINATION = RootJointFall(
     height_range=slide_to_height(PELVIS_Z, (-0.3, 0.1)),
-    joint_bounds=(("pelvis_tilt", -np.pi / 4.5, np.pi / 12),
-                  ("pelvis_list", -np.pi / 12, np.pi / 8),
-                  ("pelvis_rotation", -np.pi / 10, np.pi / 10),
+    joint_bounds=pelvis_bounds(np.pi / 10) + (
                   ("back_bky", -np.pi / 4, np.pi / 10),
                   ("back_bkz", -np.pi / 10, np.pi / 10)))
 
@@ -53,11 +49,7 @@ def _edit(spec) -> None:
     add_keyframe(spec, STAND_POSE, STAND_KEY)
 
 
-TALOS = Body(
-    name="Talos", load_spec=loader(MODEL), tasks=humanoid_tasks(TERMINATION, run=False, robot="Talos"),
-    default_task="walk", datasets=DATASETS, default_dataset="real", family="humanoid",
-    joints_to_remove=REMOVED_JOINTS, actuators_to_remove=REMOVED_ACTUATORS,
-    control_dt=CONTROL_DT, timestep=TIMESTEP, init_keyframe=STAND_KEY, licence=LICENCES["locomujoco/talos"],
-    source=f"loco-mujoco 0.4.1 environments/data/{MODEL}", spec_edit=_edit, pomdp_hide=("velocities",))
+TALOS = locomujoco_body("Talos", MODEL, humanoid_tasks(TERMINATION, run=False, robot="Talos"), "locomujoco/talos",
+                        _edit, joints_to_remove=REMOVED_JOINTS, actuators_to_remove=REMOVED_ACTUATORS)
 
 register_body(TALOS)

@@ -23,10 +23,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from loco_il.environments.assets import LICENCES
-from loco_il.environments.body import Body
-from loco_il.environments.bodies.locomujoco.common import (CONTROL_DT, DATASETS, HORIZON, STAND_KEY, TIMESTEP,
-                                                           RootJointFall, add_keyframe, loader, slide_to_height)
+from loco_il.environments.bodies.locomujoco.common import (HORIZON, STAND_KEY, RootJointFall, add_keyframe,
+                                                           locomujoco_body, slide_to_height)
 from loco_il.environments.registry import register_body
 from loco_il.environments.tasks import (DirectionalVelocityReward, Task, random_direction_command,
                                         straight_command)
@@ -67,10 +65,7 @@ def _edit(spec) -> None:
     add_keyframe(spec, STAND_POSE, STAND_KEY)
 
 
-UNITREE_A1 = Body(
-    name="UnitreeA1", load_spec=loader(MODEL), tasks=TASKS, default_task="simple", datasets=DATASETS,
-    default_dataset="real", family="quadruped", control_dt=CONTROL_DT, timestep=TIMESTEP,
-    init_keyframe=STAND_KEY, licence=LICENCES["locomujoco/quadrupeds"],
-    source=f"loco-mujoco 0.4.1 environments/data/{MODEL}", spec_edit=_edit, pomdp_hide=("velocities",))
+UNITREE_A1 = locomujoco_body("UnitreeA1", MODEL, TASKS, "locomujoco/quadrupeds", _edit,
+                             family="quadruped", default_task="simple")
 
 register_body(UNITREE_A1)

@@ -18,10 +18,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from loco_il.environments.assets import LICENCES
-from loco_il.environments.body import Body
-from loco_il.environments.bodies.locomujoco.common import (CONTROL_DT, DATASETS, STAND_KEY, TIMESTEP, RootJointFall,
-                                                           add_keyframe, humanoid_tasks, loader, slide_to_height)
+from loco_il.environments.bodies.locomujoco.common import (STAND_KEY, RootJointFall, add_keyframe, humanoid_tasks,
+                                                           locomujoco_body, pelvis_bounds, slide_to_height)
 from loco_il.environments.registry import register_body
 
 MODEL = "unitree_g1/g1.xml"
@@ -29,9 +27,7 @@ PELVIS_Z = 0.755    # g1.xml: <body name="pelvis" pos="0 0 0.755">
 
 TERMINATION = RootJointFall(
     height_range=slide_to_height(PELVIS_Z, (-0.3, 0.1)),
-    joint_bounds=(("pelvis_tilt", -np.pi / 4.5, np.pi / 12),
-                  ("pelvis_list", -np.pi / 12, np.pi / 8),
-                  ("pelvis_rotation", -np.pi / 8, np.pi / 8)))
+    joint_bounds=pelvis_bounds(np.pi / 8))
 
 STAND_POSE = {"pelvis_ty": -0.0043}
 
@@ -40,10 +36,7 @@ def _edit(spec) -> None:
     add_keyframe(spec, STAND_POSE, STAND_KEY)
 
 
-UNITREE_G1 = Body(
-    name="UnitreeG1", load_spec=loader(MODEL), tasks=humanoid_tasks(TERMINATION, run=True, robot="UnitreeG1"),
-    default_task="walk", datasets=DATASETS, default_dataset="real", family="humanoid",
-    control_dt=CONTROL_DT, timestep=TIMESTEP, init_keyframe=STAND_KEY, licence=LICENCES["locomujoco/unitree_g1"],
-    source=f"loco-mujoco 0.4.1 environments/data/{MODEL}", spec_edit=_edit, pomdp_hide=("velocities",))
+UNITREE_G1 = locomujoco_body("UnitreeG1", MODEL, humanoid_tasks(TERMINATION, run=True, robot="UnitreeG1"),
+                             "locomujoco/unitree_g1", _edit)
 
 register_body(UNITREE_G1)

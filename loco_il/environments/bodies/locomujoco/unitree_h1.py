@@ -23,10 +23,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from loco_il.environments.assets import LICENCES
-from loco_il.environments.body import Body
-from loco_il.environments.bodies.locomujoco.common import (CONTROL_DT, DATASETS, STAND_KEY, TIMESTEP, RootJointFall,
-                                                           add_keyframe, humanoid_tasks, loader, set_body_quats,
+from loco_il.environments.bodies.locomujoco.common import (STAND_KEY, RootJointFall, add_keyframe, humanoid_tasks,
+                                                           locomujoco_body, pelvis_bounds, set_body_quats,
                                                            slide_to_height)
 from loco_il.environments.registry import register_body
 
@@ -41,9 +39,7 @@ ARM_QUATS = {"left_shoulder_pitch_link": (1.0, 0.25, 0.1, 0.0), "right_elbow_lin
 
 TERMINATION = RootJointFall(
     height_range=slide_to_height(PELVIS_Z, (-0.3, 0.1)),
-    joint_bounds=(("pelvis_tilt", -np.pi / 4.5, np.pi / 12),
-                  ("pelvis_list", -np.pi / 12, np.pi / 8),
-                  ("pelvis_rotation", -np.pi / 8, np.pi / 8)))
+    joint_bounds=pelvis_bounds(np.pi / 8))
 
 STAND_POSE = {"pelvis_ty": -0.0017, "pelvis_tilt": -0.1, "ankle_angle_l": -0.1, "ankle_angle_r": -0.1}
 
@@ -53,11 +49,8 @@ def _edit(spec) -> None:
     add_keyframe(spec, STAND_POSE, STAND_KEY)
 
 
-UNITREE_H1 = Body(
-    name="UnitreeH1", load_spec=loader(MODEL), tasks=humanoid_tasks(TERMINATION, run=True, robot="UnitreeH1"),
-    default_task="walk", datasets=DATASETS, default_dataset="real", family="humanoid",
-    joints_to_remove=REMOVED_JOINTS, actuators_to_remove=REMOVED_ACTUATORS,
-    control_dt=CONTROL_DT, timestep=TIMESTEP, init_keyframe=STAND_KEY, licence=LICENCES["locomujoco/unitree_h1"],
-    source=f"loco-mujoco 0.4.1 environments/data/{MODEL}", spec_edit=_edit, pomdp_hide=("velocities",))
+UNITREE_H1 = locomujoco_body("UnitreeH1", MODEL, humanoid_tasks(TERMINATION, run=True, robot="UnitreeH1"),
+                             "locomujoco/unitree_h1", _edit,
+                             joints_to_remove=REMOVED_JOINTS, actuators_to_remove=REMOVED_ACTUATORS)
 
 register_body(UNITREE_H1)
