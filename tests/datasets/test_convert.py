@@ -8,35 +8,12 @@ import pytest
 from loco_il.datasets import DatasetError, Trajectories
 from loco_il.datasets.convert import from_minari, load_locomujoco_npz, to_minari
 
+from dataset_factories import make_dataset
+
 
 def make_rollouts(lengths=(5, 3, 7), obs_dim=4, act_dim=2, seed=0, actions=True):
-    rng = np.random.default_rng(seed)
-    eps = []
-    for i, n in enumerate(lengths):
-        states = rng.standard_normal((n + 1, obs_dim))
-        last = np.zeros(n, dtype=bool)
-        last[-1] = True
-        eps.append(
-            Trajectories(
-                obs=states[:-1],
-                next_obs=states[1:],
-                actions=rng.uniform(-1, 1, (n, act_dim)).astype(np.float32) if actions else None,
-                rewards=rng.standard_normal(n),
-                absorbing=last.copy() if i == 1 else np.zeros(n, dtype=bool),
-                last=last,
-                info={
-                    "task_id": "Hopper.run.perfect" if actions else "Hopper.run.real",
-                    "dataset_type": "perfect" if actions else "real",
-                    "source": "unit-test",
-                    "obs_names": [f"o{j}" for j in range(obs_dim)],
-                    "simulator": "mujoco 3.17.0",
-                    "seed": seed,
-                    "policy_checksum": "abc" if actions else None,
-                    "preference_level": 0.5,
-                },
-            )
-        )
-    return Trajectories.concatenate(eps)
+    """Float32 actions like most recorded policies; episode 1 ends absorbing."""
+    return make_dataset(lengths, obs_dim, act_dim, actions=actions, seed=seed, action_dtype=np.float32)
 
 
 def assert_same(a, b, check_info=True):
