@@ -41,3 +41,16 @@ def make_dataset(lengths=(5, 3, 7), obs_dim=4, act_dim=2, dtype=np.float64, acti
         last=np.concatenate(parts["last"]),
         info=info,
     )
+
+
+def assert_same(a: Trajectories, b: Trajectories, check_info: bool = True) -> None:
+    """Arrays equal with equal dtypes (None where absent on both), and equal info unless told not to."""
+    for name in ("obs", "next_obs", "actions", "rewards", "absorbing", "last"):
+        x, y = getattr(a, name), getattr(b, name)
+        if x is None or y is None:
+            assert x is None and y is None, name
+            continue
+        assert x.dtype == y.dtype, name
+        np.testing.assert_array_equal(x, y, err_msg=name)
+    if check_info:
+        assert a.info == b.info

@@ -8,24 +8,12 @@ import pytest
 from loco_il.datasets import DatasetError, Trajectories
 from loco_il.datasets.convert import from_minari, load_locomujoco_npz, to_minari
 
-from dataset_factories import make_dataset
+from dataset_factories import assert_same, make_dataset
 
 
 def make_rollouts(lengths=(5, 3, 7), obs_dim=4, act_dim=2, seed=0, actions=True):
     """Float32 actions like most recorded policies; episode 1 ends absorbing."""
     return make_dataset(lengths, obs_dim, act_dim, actions=actions, seed=seed, action_dtype=np.float32)
-
-
-def assert_same(a, b, check_info=True):
-    for name in ("obs", "next_obs", "actions", "rewards", "absorbing", "last"):
-        x, y = getattr(a, name), getattr(b, name)
-        if x is None or y is None:
-            assert x is None and y is None, name
-            continue
-        assert x.dtype == y.dtype, name
-        np.testing.assert_array_equal(x, y, err_msg=name)
-    if check_info:
-        assert a.info == b.info
 
 
 # ----------------------------------------------------------------------------- minari

@@ -12,18 +12,7 @@ from loco_il.datasets import DatasetError, Trajectories
 from loco_il.datasets.splits import make_split
 from loco_il.datasets.trajectory import DEFAULT_REGENERATE_HINT, FORMAT_VERSION, REQUIRED_INFO_KEYS
 
-from dataset_factories import make_dataset  # tests/datasets is on sys.path under pytest
-
-
-def assert_same(a: Trajectories, b: Trajectories):
-    for name in ("obs", "next_obs", "actions", "rewards", "absorbing", "last"):
-        x, y = getattr(a, name), getattr(b, name)
-        if x is None or y is None:
-            assert x is None and y is None, name
-            continue
-        assert x.dtype == y.dtype, name
-        np.testing.assert_array_equal(x, y, err_msg=name)
-    assert a.info == b.info
+from dataset_factories import assert_same, make_dataset  # tests/datasets is on sys.path under pytest
 
 
 # ----------------------------------------------------------------------------- basics
