@@ -50,7 +50,7 @@ from typing import Any, Callable, Iterable, Mapping, Sequence
 
 import numpy as np
 
-from loco_il.datasets.trajectory import DatasetError, Trajectories
+from loco_il.datasets.trajectory import DEFAULT_REGENERATE_HINT, DatasetError, Trajectories
 
 #: Bump when the rollout procedure changes in a way that changes the data (invalidates caches).
 GENERATOR_VERSION = 1
@@ -261,7 +261,7 @@ class InitStates:
     def load(cls, path: str | os.PathLike, regenerate_hint: str | None = None,
              n_episodes: int | None = None, nq: int | None = None, nv: int | None = None) -> "InitStates":
         path = Path(path)
-        hint = regenerate_hint or "delete it and call env.create_dataset() again to regenerate it"
+        hint = regenerate_hint or DEFAULT_REGENERATE_HINT
 
         def fail(reason: str) -> DatasetError:
             return DatasetError(f"cannot load initial-state file '{path}': {reason}. To fix this, {hint}.")

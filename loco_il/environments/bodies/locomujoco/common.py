@@ -18,7 +18,7 @@ Start state. LocoMuJoCo starts from dataset states; the models have no keyframe.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Callable, Mapping, Sequence
 
 import mujoco
@@ -55,20 +55,31 @@ class RootJointFall:
 
     height_range: tuple[float, float]
     joint_bounds: tuple[tuple[str, float, float], ...] = ()
+    _layout: dict = field(default_factory=dict, compare=False, repr=False)   # id(model) -> (qpos idx, lo, hi)
+
+    def _bounds(self, model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """qpos addresses and bounds of the named joints, looked up once per compiled model, not per step."""
+        key = id(model)
+        if key not in self._layout:
+            idx = []
+            for name, _, _ in self.joint_bounds:
+                jid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
+                if jid < 0:
+                    raise KeyError(f"termination bounds joint {name!r}, which this model does not have")
+                idx.append(model.jnt_qposadr[jid])
+            self._layout.clear()       # one live model per env: keep only the current one
+            self._layout[key] = (np.array(idx, dtype=np.intp), np.array([b[1] for b in self.joint_bounds]),
+                                 np.array([b[2] for b in self.joint_bounds]))
+        return self._layout[key]
 
     def __call__(self, ctx: StepContext) -> bool:
         model, data = ctx.model, ctx.data
         z = data.xpos[model.jnt_bodyid[0], 2]
         if not self.height_range[0] <= z <= self.height_range[1]:
             return True
-        for name, lo, hi in self.joint_bounds:
-            jid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
-            if jid < 0:
-                raise KeyError(f"termination bounds joint {name!r}, which this model does not have")
-            q = data.qpos[model.jnt_qposadr[jid]]
-            if not lo <= q <= hi:
-                return True
-        return False
+        idx, lo, hi = self._bounds(model)
+        q = data.qpos[idx]
+        return bool(((q < lo) | (q > hi)).any())
 
 
 def slide_to_height(z_model: float, slide_range: tuple[float, float]) -> tuple[float, float]:
