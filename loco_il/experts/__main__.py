@@ -1,10 +1,12 @@
-"""Command line: train and evaluate PPO experts.
+"""Command line: train and evaluate experts (PPO by default, or SAC with algo=sac).
 
     python -m loco_il.experts train task=Hopper.run total_steps=2000000 num_envs=16 seed=0 out_dir=runs/hopper
+    python -m loco_il.experts train task=HalfCheetah.run algo=sac total_steps=1000000 device=cuda
     python -m loco_il.experts eval path=runs/hopper/best.pt episodes=10
 
-`train` is a Hydra app (configs/train.yaml, plus configs/body/<Body>.yaml when it exists); re-running the
-same command with the same out_dir resumes from out_dir/checkpoint.pt. Its last output line is a JSON
+`train` is a Hydra app (configs/train.yaml with configs/algo/<algo>.yaml, then the `<algo>:` section of
+configs/body/<Body>.yaml when it exists); re-running the same command with the same out_dir resumes from
+out_dir/checkpoint.pt. Its last output line is a JSON
 summary (final evaluation return mean and std, env steps, wall time). `eval` prints one JSON line.
 """
 from __future__ import annotations
@@ -38,19 +40,34 @@ def _cli_overrides() -> list[str]:
 
 
 def compose_train_config(cfg: DictConfig, cli_overrides: list[str]) -> dict[str, Any]:
-    """train.yaml <- configs/body/<Body>.yaml <- command line, resolved to a plain dict."""
+    """train.yaml + algo/<algo>.yaml <- the `<algo>:` section of configs/body/<Body>.yaml <- command line,
+    resolved to a plain dict."""
     cfg = OmegaConf.create(OmegaConf.to_container(cfg, resolve=False))
     body_file = body_config_path(cfg.task)
     if body_file.exists():
-        cfg = OmegaConf.merge(cfg, OmegaConf.load(body_file), OmegaConf.from_dotlist(cli_overrides))
+        section = OmegaConf.load(body_file).get(cfg.algo)
+        if section:
+            plain_overrides = [o for o in cli_overrides if not o.startswith("algo=")]
+            cfg = OmegaConf.merge(cfg, section, OmegaConf.from_dotlist(plain_overrides))
     return OmegaConf.to_container(cfg, resolve=True)
+
+
+TRAINERS = {"ppo": "loco_il.experts.ppo:PPOTrainer", "sac": "loco_il.experts.sac:SACTrainer"}
+
+
+def trainer_class(algo: str):
+    """The trainer for `algo` (imported on use: the trainers pull in the env stack)."""
+    import importlib
+    if algo not in TRAINERS:
+        raise SystemExit(f"unknown algo={algo!r}; one of {sorted(TRAINERS)}")
+    module, name = TRAINERS[algo].split(":")
+    return getattr(importlib.import_module(module), name)
 
 
 @hydra.main(config_path=CONFIG_DIR, config_name="train", version_base=None)
 def train_main(cfg: DictConfig) -> None:
-    from loco_il.experts.ppo import PPOTrainer
     plain = compose_train_config(cfg, _cli_overrides())
-    PPOTrainer(plain).train()
+    trainer_class(plain["algo"])(plain).train()
 
 
 @hydra.main(config_path=CONFIG_DIR, config_name="eval", version_base=None)

@@ -10,7 +10,8 @@ lists, strings and numbers only, no pickled classes):
                     "policy.net.0.weight": ..., ..., "policy.log_std": ...}}
 
 `ExpertPolicy.__call__(obs)` is deterministic (the Gaussian's mean, clipped to the action space
-[-1, 1]); the normalizer statistics are constants here: using an expert never changes them.
+[-1, 1]; for a tanh-squashed SAC policy, metadata "squash": true, tanh of the mean); the normalizer
+statistics are constants here: using an expert never changes them.
 `checksum()` is the sha256 of every tensor of the state dict (names, dtypes, shapes and bytes in
 sorted-name order), so two files with the same weights and statistics have the same checksum.
 """
@@ -57,13 +58,15 @@ class ExpertPolicy:
 
     def __init__(self, obs_dim: int, act_dim: int, hidden: Sequence[int] = (64, 64), activation: str = "tanh",
                  obs_mean: np.ndarray | None = None, obs_var: np.ndarray | None = None,
-                 obs_clip: float = 10.0, obs_eps: float = 1e-8, metadata: Mapping[str, Any] | None = None):
+                 obs_clip: float = 10.0, obs_eps: float = 1e-8, metadata: Mapping[str, Any] | None = None,
+                 squash: bool = False):
         if activation not in ACTIVATIONS:
             raise ValueError(f"unknown activation {activation!r}; one of {sorted(ACTIVATIONS)}")
         self.obs_dim, self.act_dim = int(obs_dim), int(act_dim)
         self.hidden = tuple(int(h) for h in hidden)
         self.activation = activation
-        self.policy = GaussianPolicy(self.obs_dim, self.act_dim, self.hidden, squash=False,
+        self.squash = bool(squash)   # PPO experts: plain Gaussian; SAC experts: tanh-squashed
+        self.policy = GaussianPolicy(self.obs_dim, self.act_dim, self.hidden, squash=self.squash,
                                      activation=ACTIVATIONS[activation])
         self.policy.eval()
         self.policy.requires_grad_(False)
@@ -79,11 +82,16 @@ class ExpertPolicy:
     @torch.no_grad()
     def act(self, obs: np.ndarray, deterministic: bool = True, rng: np.random.Generator | None = None,
             noise_scale: float = 1.0) -> np.ndarray:
-        """Mean action (deterministic) or a sample mean + noise_scale * std * N(0, 1) drawn with `rng`."""
+        """Mean action (deterministic) or a sample mean + noise_scale * std * N(0, 1) drawn with `rng`
+        (squashed experts: tanh of the mean, or of mean + noise_scale * std(s) * N(0, 1))."""
         obs = np.asarray(obs)
         if obs.shape[-1] != self.obs_dim:
             raise ValueError(f"expert expects observations of size {self.obs_dim}, got shape {obs.shape}")
         x = torch.from_numpy(self.normalize(obs))
+        if self.squash and not deterministic:
+            rng = rng if rng is not None else np.random.default_rng()
+            pre, log_std = (t.numpy().astype(np.float64) for t in self.policy._mean_log_std(x))
+            return np.tanh(pre + noise_scale * np.exp(log_std) * rng.standard_normal(pre.shape))
         mean = self.policy.deterministic(x).numpy().astype(np.float64)
         if not deterministic:
             rng = rng if rng is not None else np.random.default_rng()
@@ -121,7 +129,7 @@ class ExpertPolicy:
     def to_file_dict(self) -> dict[str, Any]:
         meta = dict(self.metadata)
         meta.update(obs_dim=self.obs_dim, act_dim=self.act_dim, hidden=list(self.hidden),
-                    activation=self.activation, obs_clip=self.obs_clip, obs_eps=self.obs_eps)
+                    activation=self.activation, obs_clip=self.obs_clip, obs_eps=self.obs_eps, squash=self.squash)
         return {"format": FORMAT, "metadata": _plain(meta), "state_dict": self.state_dict()}
 
     def save(self, path: str | os.PathLike) -> str:
@@ -139,7 +147,8 @@ class ExpertPolicy:
             raise ValueError(f"not a loco_il expert file (format {fmt!r}, expected {FORMAT!r})")
         meta = dict(data["metadata"])
         expert = cls(meta["obs_dim"], meta["act_dim"], meta["hidden"], meta.get("activation", "tanh"),
-                     obs_clip=meta.get("obs_clip", 10.0), obs_eps=meta.get("obs_eps", 1e-8), metadata=meta)
+                     obs_clip=meta.get("obs_clip", 10.0), obs_eps=meta.get("obs_eps", 1e-8), metadata=meta,
+                     squash=bool(meta.get("squash", False)))
         expert.load_state_dict(data["state_dict"])
         return expert
 

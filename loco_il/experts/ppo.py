@@ -17,10 +17,10 @@ Pieces:
                     On truncation (time limit) s'_t is the episode's real last observation and V(s'_t) is
                     bootstrapped; on termination it is not. ended_t = terminated_t or truncated_t.
 * `PPO`             the learner: networks, Adam optimizers (linearly decayed learning rate), acting, update.
-* `PPOTrainer`      the loop: vectorized rollouts, optional reward scaling (divide rewards by the running
-                    std of the discounted return, "reward scaling" in Engstrom et al. 2020, "Implementation
-                    Matters in Deep Policy Gradients"), checkpoint/resume, periodic deterministic evaluation,
-                    `best.pt` and snapshot experts, progress lines and a final JSON summary.
+* `PPOTrainer`      vectorized rollouts and optional reward scaling (divide rewards by the running std of
+                    the discounted return, "reward scaling" in Engstrom et al. 2020, "Implementation Matters
+                    in Deep Policy Gradients"); checkpoint/resume, evaluations, `best.pt`, snapshots and
+                    progress lines come from `trainer.ExpertTrainer`.
 
 Defaults (`TrainConfig`; `configs/train.yaml` mirrors them): gamma 0.99, lambda 0.95, clip 0.2, 10 epochs,
 Adam 3e-4 (Schulman et al. 2017, Table 3, MuJoCo); 2048-step batches as in that table (16 envs x 128 steps,
@@ -36,12 +36,10 @@ from __future__ import annotations
 import collections
 import copy
 import dataclasses
-import json
 import math
 import time
-from dataclasses import dataclass, field
-from pathlib import Path
-from typing import Any, Callable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any, Mapping
 
 import numpy as np
 import torch
@@ -49,24 +47,15 @@ from torch import nn
 
 from loco_il.algorithms.common.networks import GaussianPolicy, mlp
 from loco_il.experts.policy import ACTIVATIONS, ExpertPolicy, normalize_obs
-from loco_il.utils.atomic import atomic_torch_save
-
-CHECKPOINT_FORMAT = "loco_il.experts.checkpoint/v1"
+from loco_il.experts.trainer import CommonConfig, ExpertTrainer, resolve_device  # noqa: F401 (re-exported)
 
 
 # ---------------------------------------------------------------------------- configuration
 @dataclass
-class TrainConfig:
-    """Everything `python -m loco_il.experts train` accepts (flat; see configs/train.yaml)."""
+class TrainConfig(CommonConfig):
+    """Everything `python -m loco_il.experts train` (algo=ppo) accepts (flat; see configs/train.yaml)."""
 
-    task: str = "Hopper.run"
-    seed: int = 0
-    out_dir: str = "runs/experts/Hopper.run/seed0"
-    total_steps: int = 2_000_000
-    num_envs: int = 16
-    async_envs: Any = "auto"          # "auto" | True | False (yaml key: `async`)
-    device: str = "auto"              # "auto" | "cpu" | "cuda": where the PPO update runs; envs and acting on CPU
-    torch_threads: int = 1
+    algo: str = "ppo"
     # PPO
     batch_size: int = 2048            # env steps per rollout, split over the envs ...
     num_steps: int | None = None      # ... unless given: steps per env per rollout (batch = num_envs * num_steps)
@@ -74,7 +63,6 @@ class TrainConfig:
     minibatch_size: int = 512
     lr: float = 3e-4
     lr_decay: bool = True             # linear decay to 0 over total_steps
-    gamma: float = 0.99
     gae_lambda: float = 0.95
     clip: float = 0.2
     vf_coef: float = 0.5
@@ -86,42 +74,14 @@ class TrainConfig:
     obs_clip: float = 10.0
     norm_reward: bool = True
     reward_clip: float = 10.0
-    hidden: Sequence[int] = (64, 64)
-    activation: str = "tanh"
     init_log_std: float = 0.0
-    # bookkeeping
-    checkpoint_minutes: float = 5.0
-    eval_interval: int = 100_000      # env steps between evaluations (0: only at snapshots and the end)
-    eval_episodes: int = 10
-    eval_envs: int = 0                # 0: min(eval_episodes, num_envs)
-    snapshot_every: float = 0.1       # fraction of total_steps between snapshots (0: none)
-    snapshot_initial: bool = True     # also save the untrained policy as snapshots/step_000000000.pt
-    log_interval_s: float = 10.0
-    env_kwargs: Mapping[str, Any] = field(default_factory=dict)
 
-    @classmethod
-    def from_mapping(cls, cfg: Mapping[str, Any]) -> "TrainConfig":
-        data = dict(cfg)
-        if "async" in data:
-            data["async_envs"] = data.pop("async")
-        names = {f.name for f in dataclasses.fields(cls)}
-        unknown = sorted(set(data) - names)
-        if unknown:
-            raise ValueError(f"unknown training option(s) {unknown}; known: {sorted(names)}")
-        out = cls(**data)
-        out.hidden = tuple(int(h) for h in out.hidden)
-        out.env_kwargs = dict(out.env_kwargs or {})
-        return out
+    RESUME_FIXED = ("hidden", "activation", "norm_obs")
 
     @property
     def steps_per_env(self) -> int:
         return int(self.num_steps) if self.num_steps else max(1, math.ceil(self.batch_size / self.num_envs))
 
-    def to_dict(self) -> dict[str, Any]:
-        d = dataclasses.asdict(self)
-        d["hidden"] = list(self.hidden)
-        d["env_kwargs"] = dict(self.env_kwargs)
-        return d
 
 
 # ---------------------------------------------------------------------------- normalizer, GAE
@@ -186,13 +146,6 @@ def orthogonal_init(module: nn.Module, gain: float = math.sqrt(2)) -> None:
         nn.init.zeros_(lin.bias)
 
 
-def resolve_device(device: str) -> torch.device:
-    if device in ("auto", None, ""):
-        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
-    if str(device).startswith("cuda") and not torch.cuda.is_available():
-        print("[ppo] device=cuda asked for but CUDA is not available: updating on the CPU", flush=True)
-        return torch.device("cpu")
-    return torch.device(device)
 
 
 # ---------------------------------------------------------------------------- learner
@@ -334,143 +287,30 @@ class PPO:
 
 
 # ---------------------------------------------------------------------------- training loop
-class PPOTrainer:
-    """Train an expert for one Task-ID into `cfg.out_dir`; resumes from `out_dir/checkpoint.pt` if present.
+class PPOTrainer(ExpertTrainer):
+    """PPO expert training (the loop, checkpoints, evaluations and files: `trainer.ExpertTrainer`)."""
 
-    Files: `checkpoint.pt` (everything needed to resume), `best.pt` (the expert with the best evaluation
-    so far), `final.pt` (the expert at the end), `snapshots/step_XXXXXXXXX.pt` (experts at fractions of
-    training, for ranked `preference` datasets), `evals.jsonl` (one line per evaluation).
-    """
+    config_class = TrainConfig
+    name = "PPO"
 
-    def __init__(self, cfg: TrainConfig | Mapping[str, Any], log: Callable[[str], None] | None = None):
-        from loco_il.environments import LocoEnv
-        from loco_il.experts.vec import make_vec_env
+    def build(self) -> None:
+        self.agent = PPO(self.obs_dim, self.act_dim, self.cfg, self.device)
 
-        self.cfg = cfg if isinstance(cfg, TrainConfig) else TrainConfig.from_mapping(cfg)
+    def learner_state(self) -> dict[str, Any]:
+        return self.agent.state_dict()
+
+    def load_learner_state(self, state: Mapping[str, Any]) -> None:
+        self.agent.load_state_dict(state)
+
+    def make_expert(self, metadata: Mapping[str, Any] | None = None) -> ExpertPolicy:
+        return self.agent.make_expert(metadata)
+
+    def describe(self) -> str:
         cfg = self.cfg
-        self.log = log or (lambda s: print(s, flush=True))
-        torch.set_num_threads(max(1, int(cfg.torch_threads)))
-        probe = LocoEnv.make(cfg.task, **cfg.env_kwargs)
-        self.task_id = probe.task_id
-        self.obs_dim = probe.obs_spec.dim
-        self.act_dim = probe.info.action_space.shape[0]
-        self.horizon = probe.info.horizon
-        probe.stop()
-        self.out_dir = Path(cfg.out_dir)
-        self.out_dir.mkdir(parents=True, exist_ok=True)
-        self.ckpt_path = self.out_dir / "checkpoint.pt"
-        self.device = resolve_device(cfg.device)
+        return (f"{cfg.num_envs} envs ({'async' if _is_async(cfg) else 'sync'}), "
+                f"batch {cfg.num_envs * cfg.steps_per_env}, update on {self.device}")
 
-        torch.manual_seed(cfg.seed)
-        self.agent = PPO(self.obs_dim, self.act_dim, cfg, self.device)
-        self.step = 0
-        self.iteration = 0
-        self.wall_time = 0.0          # summed over all sessions of this run
-        self.best_eval = -math.inf
-        self.last_eval: dict[str, Any] | None = None
-        self.last_eval_step = -1
-        self.last_snapshot_step = -1
-        self.recent: collections.deque = collections.deque(maxlen=50)   # (return, length) of finished episodes
-        self.resumed_from: int | None = None
-        if self.ckpt_path.exists():
-            self._load_checkpoint()
-
-        self._make_vec = make_vec_env
-        self.envs = None
-        self.eval_envs = None
-
-    # ------------------------------------------------------------------ checkpoints
-    def _rng_state(self) -> dict[str, Any]:
-        return {"torch": torch.get_rng_state()}
-
-    def save_checkpoint(self) -> None:
-        data = {"format": CHECKPOINT_FORMAT, "task_id": self.task_id, "config": self.cfg.to_dict(),
-                "step": self.step, "iteration": self.iteration, "wall_time": self.wall_time + self._session_time(),
-                "agent": self.agent.state_dict(), "rng": self._rng_state(), "best_eval": self.best_eval,
-                "last_eval": self.last_eval, "last_eval_step": self.last_eval_step,
-                "last_snapshot_step": self.last_snapshot_step,
-                "recent": [list(map(float, r)) for r in self.recent]}
-        atomic_torch_save(data, self.ckpt_path)
-        self._last_ckpt_time = time.time()
-
-    def _load_checkpoint(self) -> None:
-        data = torch.load(self.ckpt_path, map_location="cpu", weights_only=True)
-        if data.get("format") != CHECKPOINT_FORMAT:
-            raise ValueError(f"{self.ckpt_path} is not a PPO checkpoint of this version")
-        if data["task_id"] != self.task_id:
-            raise ValueError(f"{self.ckpt_path} belongs to {data['task_id']}, not {self.task_id}; "
-                             "use another out_dir")
-        old = data["config"]
-        for key in ("hidden", "activation", "norm_obs"):
-            if old.get(key) != self.cfg.to_dict()[key]:
-                raise ValueError(f"cannot resume {self.ckpt_path}: {key} was {old.get(key)!r}, "
-                                 f"now {self.cfg.to_dict()[key]!r}")
-        self.agent.load_state_dict(data["agent"])
-        self.step, self.iteration = int(data["step"]), int(data["iteration"])
-        self.wall_time = float(data["wall_time"])
-        self.best_eval = float(data["best_eval"])
-        self.last_eval = data["last_eval"]
-        self.last_eval_step = int(data["last_eval_step"])
-        self.last_snapshot_step = int(data["last_snapshot_step"])
-        self.recent.extend(tuple(r) for r in data["recent"])
-        torch.set_rng_state(data["rng"]["torch"])
-        self.resumed_from = self.step
-
-    # ------------------------------------------------------------------ evaluation and experts
-    def _metadata(self, ev: Mapping[str, Any] | None) -> dict[str, Any]:
-        return {"task_id": self.task_id, "training_steps": self.step, "algorithm": "PPO",
-                "eval_return": None if ev is None else ev["return_mean"],
-                "eval_return_std": None if ev is None else ev["return_std"],
-                "eval_episodes": None if ev is None else ev["episodes"], "seed": self.cfg.seed,
-                "total_steps": self.cfg.total_steps}
-
-    def evaluate(self) -> dict[str, Any]:
-        """Deterministic episodes of the current policy; the normalizer is frozen (read-only) here."""
-        from loco_il.experts.vec import evaluate
-        cfg = self.cfg
-        if self.eval_envs is None:
-            n = cfg.eval_envs or min(cfg.eval_episodes, cfg.num_envs)
-            self.eval_envs = self._make_vec(self.task_id, max(1, n), cfg.async_envs, autoreset=True,
-                                            env_kwargs=cfg.env_kwargs)
-        expert = self.agent.make_expert()
-        t0 = time.time()
-        returns, lengths = evaluate(expert.act, self.eval_envs, cfg.eval_episodes, seed=10_000 + 1000 * cfg.seed)
-        ev = {"step": self.step, "return_mean": float(returns.mean()), "return_std": float(returns.std()),
-              "length_mean": float(lengths.mean()), "episodes": int(len(returns)),
-              "returns": [float(r) for r in returns], "eval_time_s": round(time.time() - t0, 3)}
-        self.last_eval, self.last_eval_step = ev, self.step
-        with open(self.out_dir / "evals.jsonl", "a") as f:
-            f.write(json.dumps({k: v for k, v in ev.items() if k != "returns"}) + "\n")
-        if ev["return_mean"] > self.best_eval:
-            self.best_eval = ev["return_mean"]
-            self.agent.make_expert(self._metadata(ev)).save(self.out_dir / "best.pt")
-        return ev
-
-    def _snapshot_thresholds(self) -> list[int]:
-        f = self.cfg.snapshot_every
-        if not f or f <= 0:
-            return []
-        k = int(math.floor(1.0 / f + 1e-9))
-        return [int(round(i * f * self.cfg.total_steps)) for i in range(1, k + 1)]
-
-    def _maybe_snapshot(self, final: bool = False) -> None:
-        due = [s for s in self._snapshot_thresholds() if self.last_snapshot_step < s <= self.step]
-        initial = self.cfg.snapshot_initial and self.step == 0 and self.last_snapshot_step < 0 \
-            and self.cfg.snapshot_every
-        if not due and not initial:
-            return
-        ev = self.last_eval if self.last_eval_step == self.step else self.evaluate()
-        path = self.out_dir / "snapshots" / f"step_{self.step:09d}.pt"
-        meta = self._metadata(ev)
-        meta["fraction"] = round(self.step / max(1, self.cfg.total_steps), 4)
-        self.agent.make_expert(meta).save(path)
-        self.last_snapshot_step = self.step
-
-    # ------------------------------------------------------------------ rollouts
-    def _session_time(self) -> float:
-        return time.time() - self._t0 if hasattr(self, "_t0") else 0.0
-
-    def _reset_envs(self) -> None:
+    def start(self) -> None:
         cfg = self.cfg
         if self.envs is None:
             self.envs = self._make_vec(self.task_id, cfg.num_envs, cfg.async_envs, autoreset=True,
@@ -480,6 +320,22 @@ class PPOTrainer:
         self._ep_ret = np.zeros(cfg.num_envs)
         self._ep_len = np.zeros(cfg.num_envs, dtype=np.int64)
         self._disc_ret = np.zeros(cfg.num_envs)
+
+    def iterate(self) -> dict[str, float]:
+        """One rollout and one PPO update (learning rate decayed linearly over the budget)."""
+        cfg = self.cfg
+        if cfg.lr_decay:
+            self.agent.set_lr(cfg.lr * max(0.0, 1.0 - self.step / cfg.total_steps))
+        t0 = time.perf_counter()
+        batch = self.collect()
+        self.collect_time = getattr(self, "collect_time", 0.0) + time.perf_counter() - t0
+        return self.agent.update(batch)
+
+    def progress_suffix(self, stats: Mapping[str, float]) -> str:
+        train = self._timers.get("train", 0.0) or 1.0
+        return (f"collect {100 * min(1.0, getattr(self, 'collect_time', 0.0) / train):.0f}% of train | "
+                f"kl {stats.get('approx_kl', 0):.4f} clip {stats.get('clipfrac', 0):.3f} "
+                f"vloss {stats.get('v_loss', 0):.3f} std {stats.get('std', 0):.3f}")
 
     def collect(self) -> dict[str, np.ndarray]:
         """One rollout of num_steps per env; returns the flattened training batch."""
@@ -523,92 +379,6 @@ class PPOTrainer:
         flat = lambda a: a.reshape((T * N,) + a.shape[2:])  # noqa: E731
         return {"obs": flat(obs_b), "actions": flat(act_b), "logp": flat(logp_b),
                 "adv": flat(adv.astype(np.float32)), "returns": flat(returns.astype(np.float32))}
-
-    # ------------------------------------------------------------------ main loop
-    def train(self, callback: Callable[["PPOTrainer"], None] | None = None) -> dict[str, Any]:
-        """Train until `cfg.total_steps`; returns the final summary (also printed as the last JSON line).
-
-        `callback(trainer)` runs after every iteration (after any checkpoint of that iteration).
-        """
-        cfg = self.cfg
-        self._t0 = self._last_ckpt_time = self._last_log = time.time()
-        self._last_log_step = -1
-        self._timers: dict[str, float] = collections.defaultdict(float)
-        start_step = self.step
-        if self.resumed_from is not None:
-            self.log(f"[ppo] resuming {self.task_id} from {self.ckpt_path} at step {self.step}")
-        self.log(f"[ppo] {self.task_id}: obs {self.obs_dim}, act {self.act_dim}, {cfg.num_envs} envs "
-                 f"({'async' if _is_async(cfg) else 'sync'}), batch {cfg.num_envs * cfg.steps_per_env}, "
-                 f"update on {self.device}, total {cfg.total_steps} steps -> {self.out_dir}")
-        try:
-            if self.step < cfg.total_steps:
-                self._maybe_snapshot()
-                self._reset_envs()
-            stats: dict[str, float] = {}
-            while self.step < cfg.total_steps:
-                if cfg.lr_decay:
-                    self.agent.set_lr(cfg.lr * max(0.0, 1.0 - self.step / cfg.total_steps))
-                t0 = time.time()
-                batch = self.collect()
-                t1 = time.time()
-                stats = self.agent.update(batch)
-                t2 = time.time()
-                self.iteration += 1
-                if cfg.eval_interval and self.step - max(self.last_eval_step, 0) >= cfg.eval_interval:
-                    self.evaluate()
-                self._maybe_snapshot()
-                now = time.time()
-                self._timers["collect"] += t1 - t0
-                self._timers["update"] += t2 - t1
-                self._timers["eval"] += now - t2
-                if now - self._last_log >= cfg.log_interval_s:
-                    self._progress(start_step, stats)
-                    self._last_log, self._last_log_step = now, self.step
-                if now - self._last_ckpt_time >= cfg.checkpoint_minutes * 60:
-                    self.save_checkpoint()
-                if callback is not None:
-                    callback(self)
-            final_ev = self.last_eval if (self.last_eval_step == self.step and self.last_eval) else self.evaluate()
-            self._maybe_snapshot()
-            if stats and self._last_log_step != self.step:
-                self._progress(start_step, stats)
-            self.save_checkpoint()
-            self.agent.make_expert(self._metadata(final_ev)).save(self.out_dir / "final.pt")
-        finally:
-            self.close()
-        session = self._session_time()
-        summary = {"task_id": self.task_id, "eval_return_mean": round(final_ev["return_mean"], 2),
-                   "eval_return_std": round(final_ev["return_std"], 2), "eval_episodes": final_ev["episodes"],
-                   "best_eval_return": round(self.best_eval, 2), "env_steps": self.step,
-                   "wall_time_s": round(self.wall_time + session, 1), "session_wall_time_s": round(session, 1),
-                   "steps_per_s": round((self.step - start_step) / max(session, 1e-9), 1),
-                   "resumed_from": self.resumed_from, "device": str(self.device), "num_envs": cfg.num_envs,
-                   "out_dir": str(self.out_dir), "best_path": str(self.out_dir / "best.pt")}
-        self.log(json.dumps(summary))
-        return summary
-
-    def _progress(self, start_step: int, stats: Mapping[str, float]) -> None:
-        elapsed = self._session_time()
-        sps = (self.step - start_step) / max(elapsed, 1e-9)
-        rets = [r for r, _ in self.recent]
-        ret = f"{np.mean(rets):.1f} (n={len(rets)})" if rets else "n/a"
-        length = f"{np.mean([n for _, n in self.recent]):.0f}" if rets else "n/a"
-        ev = f"{self.last_eval['return_mean']:.1f}" if self.last_eval else "n/a"
-        self.log(f"[ppo] step {self.step}/{self.cfg.total_steps} ({100 * self.step / self.cfg.total_steps:.0f}%) | "
-                 f"{sps:.0f} steps/s | return {ret} len {length} | eval {ev} (best {self.best_eval:.1f}) | "
-                 f"t {self.wall_time + elapsed:.0f}s ({self._time_split()}) | kl {stats.get('approx_kl', 0):.4f} "
-                 f"clip {stats.get('clipfrac', 0):.3f} vloss {stats.get('v_loss', 0):.3f} std {stats.get('std', 0):.3f}")
-
-    def _time_split(self) -> str:
-        total = sum(self._timers.values()) or 1.0
-        return " ".join(f"{k} {100 * v / total:.0f}%" for k, v in self._timers.items())
-
-    def close(self) -> None:
-        for attr in ("envs", "eval_envs"):
-            env = getattr(self, attr, None)
-            if env is not None:
-                env.close()
-                setattr(self, attr, None)
 
 
 def _is_async(cfg: TrainConfig) -> bool:

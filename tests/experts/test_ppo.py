@@ -77,7 +77,7 @@ class _Countdown(gym.Env):
 def test_rollout_bootstraps_from_the_real_last_observation_on_truncation(tmp_path):
     tr = PPOTrainer(small_cfg(tmp_path, num_steps=4, norm_obs=False, norm_reward=False), log=quiet)
     tr.envs = gym.vector.SyncVectorEnv([_Countdown] * 2, autoreset_mode=gym.vector.AutoresetMode.SAME_STEP)
-    tr._reset_envs()
+    tr.start()
     seen = []
     real_values = tr.agent.values
     tr.agent.values = lambda nobs: (seen.append(np.array(nobs)), real_values(nobs))[1]
@@ -98,7 +98,7 @@ def test_rollout_bootstraps_from_the_real_last_observation_on_truncation(tmp_pat
 # ---------------------------------------------------------------------------- normalizer
 def test_normalizer_frozen_in_evaluation(tmp_path):
     tr = PPOTrainer(small_cfg(tmp_path), log=quiet)
-    tr._reset_envs()
+    tr.start()
     tr.collect()                        # training rollouts move the statistics ...
     rms = tr.agent.obs_rms
     before = (rms.mean.copy(), rms.var.copy(), rms.count)

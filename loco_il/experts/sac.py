@@ -1,0 +1,185 @@
+"""SAC for training experts on the tasks where PPO is too sample-hungry for our budgets (HalfCheetah, Ant, Humanoid).
+
+The learner is the project's shared SAC core (`loco_il.algorithms.common.sac.SACCore`: twin critic, target
+critic, tanh-squashed Gaussian actor, learned temperature), trained here on the environment's reward with
+the soft Bellman target of Haarnoja et al. 2018 ("Soft Actor-Critic Algorithms and Applications",
+arXiv:1812.05905):
+
+    y = r + gamma * (1 - absorbing) * (min_i Q_target_i(s', a') - alpha log pi(a'|s')),  a' ~ pi(.|s')
+    L_Q = mean (Q_1(s, a) - y)^2 + mean (Q_2(s, a) - y)^2
+
+`absorbing` is set only on termination (a fall), never on a time-limit truncation, whose next state is
+bootstrapped. The first `random_steps` env steps take uniform random actions; updates start when the
+replay memory holds `learning_starts` transitions and then run `updates_per_step` gradient steps per env
+step (summed over the envs). Defaults: `configs/algo/sac.yaml` (with sources).
+
+The shipped expert is the deterministic tanh(mean) policy with no observation normalization
+(`ExpertPolicy(..., squash=True)`); the loop, checkpoints (including the replay memory when
+`checkpoint_replay`), evaluations, snapshots and files come from `trainer.ExpertTrainer`. A checkpoint
+without the replay memory resumes with an empty one, refilled by the current policy before updates go on.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+import torch
+
+from loco_il.algorithms.common.networks import GaussianPolicy
+from loco_il.algorithms.common.replay import TransitionBuffer
+from loco_il.algorithms.common.sac import SACCore
+from loco_il.experts.policy import ACTIVATIONS, ExpertPolicy
+from loco_il.experts.trainer import CommonConfig, ExpertTrainer
+
+
+@dataclass
+class SACConfig(CommonConfig):
+    """Everything `python -m loco_il.experts train algo=sac` accepts (see configs/algo/sac.yaml)."""
+
+    algo: str = "sac"
+    num_envs: int = 1
+    hidden: Sequence[int] = (256, 256)
+    activation: str = "relu"
+    eval_interval: int = 50_000
+    batch_size: int = 256
+    actor_lr: float = 3e-4
+    critic_lr: float = 3e-4
+    alpha_lr: float = 3e-4
+    tau: float = 0.005
+    init_alpha: float = 1.0
+    target_entropy: float | None = None    # None: -dim(A)
+    replay_capacity: int = 1_000_000
+    random_steps: int = 10_000
+    learning_starts: int = 10_000
+    updates_per_step: float = 1.0
+    checkpoint_replay: bool = True
+
+
+def soft_td_target(rewards: torch.Tensor, absorbing: torch.Tensor, next_v: torch.Tensor,
+                   gamma: float) -> torch.Tensor:
+    """y = r + gamma (1 - absorbing) V_target(s')."""
+    return rewards + gamma * (1.0 - absorbing) * next_v
+
+
+def twin_critic_loss(q1: torch.Tensor, q2: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+    """Both heads regress onto the same target (Haarnoja et al. 2018b, Eq. 5, one term per head)."""
+    return (q1 - target).pow(2).mean() + (q2 - target).pow(2).mean()
+
+
+class SACTrainer(ExpertTrainer):
+    config_class = SACConfig
+    name = "SAC"
+
+    # ------------------------------------------------------------------ learner
+    def build(self) -> None:
+        cfg = self.cfg
+        self.policy = GaussianPolicy(self.obs_dim, self.act_dim, cfg.hidden, squash=True,
+                                     activation=ACTIVATIONS[cfg.activation]).to(self.device)
+        self.sac = SACCore(self.policy, self.obs_dim, self.act_dim, cfg.hidden, cfg.gamma, cfg.tau,
+                           cfg.actor_lr, cfg.critic_lr, cfg.alpha_lr, cfg.init_alpha, True, cfg.target_entropy,
+                           None, self.device)
+        self.replay = TransitionBuffer(cfg.replay_capacity, self.obs_dim, self.act_dim, self.device,
+                                       with_rewards=True)
+        self.rng = np.random.default_rng(cfg.seed)
+        self.n_updates = 0
+        self._update_credit = 0.0
+        self._stats: dict[str, torch.Tensor] = {}
+
+    def learner_state(self) -> dict[str, Any]:
+        return {"policy": {k: v.detach().cpu() for k, v in self.policy.state_dict().items()},
+                "sac": self.sac.state_dict(), "n_updates": self.n_updates,
+                "update_credit": self._update_credit, "rng": self.rng.bit_generator.state,
+                "replay": self.replay.state_dict() if self.cfg.checkpoint_replay else None}
+
+    def load_learner_state(self, state: Mapping[str, Any]) -> None:
+        self.policy.load_state_dict(state["policy"])
+        self.sac.load_state_dict(state["sac"])
+        self.n_updates = int(state["n_updates"])
+        self._update_credit = float(state["update_credit"])
+        self.rng.bit_generator.state = state["rng"]
+        if state.get("replay") is not None:
+            self.replay.load_state_dict(state["replay"])
+        else:
+            self.log(f"[sac] {self.ckpt_path} has no replay memory: refilling it with the current policy "
+                     f"({self.cfg.learning_starts} steps) before updates go on")
+
+    def make_expert(self, metadata: Mapping[str, Any] | None = None) -> ExpertPolicy:
+        # obs_var = 1 - eps makes the expert's normalization (obs - 0) / sqrt(var + eps) the identity
+        expert = ExpertPolicy(self.obs_dim, self.act_dim, self.cfg.hidden, self.cfg.activation,
+                              np.zeros(self.obs_dim), np.full(self.obs_dim, 1.0 - 1e-8), obs_clip=0.0,
+                              obs_eps=1e-8, metadata=metadata, squash=True)
+        expert.policy.load_state_dict({k: v.detach().cpu() for k, v in self.policy.state_dict().items()})
+        return expert
+
+    def describe(self) -> str:
+        cfg = self.cfg
+        return (f"{cfg.num_envs} env(s), batch {cfg.batch_size}, {cfg.updates_per_step:g} updates per env step, "
+                f"update on {self.device}")
+
+    # ------------------------------------------------------------------ acting and learning
+    def start(self) -> None:
+        cfg = self.cfg
+        if self.envs is None:
+            self.envs = self._make_vec(self.task_id, cfg.num_envs, cfg.async_envs, autoreset=True,
+                                       env_kwargs=cfg.env_kwargs)
+        base = int(np.random.SeedSequence([cfg.seed, self.step]).generate_state(1)[0]) % (2 ** 31 - cfg.num_envs)
+        self._obs, _ = self.envs.reset(seed=[base + i for i in range(cfg.num_envs)])
+        self._ep_ret = np.zeros(cfg.num_envs)
+        self._ep_len = np.zeros(cfg.num_envs, dtype=np.int64)
+
+    @torch.no_grad()
+    def _actions(self) -> np.ndarray:
+        if self.step < self.cfg.random_steps:
+            return self.rng.uniform(-1.0, 1.0, size=(self.cfg.num_envs, self.act_dim)).astype(np.float32)
+        obs = torch.as_tensor(self._obs, dtype=torch.float32, device=self.device)
+        return self.policy.sample(obs)[0].cpu().numpy()
+
+    def iterate(self) -> Mapping[str, Any]:
+        """About 1000 env steps (over all envs), each followed by its share of gradient steps."""
+        cfg = self.cfg
+        n = cfg.num_envs
+        for _ in range(max(1, 1000 // n)):
+            if self.step >= cfg.total_steps:
+                break
+            actions = self._actions()
+            next_obs, reward, terminated, truncated, infos = self.envs.step(actions)
+            ended = np.asarray(terminated) | np.asarray(truncated)
+            real_next = np.array(next_obs, dtype=np.float32, copy=True)
+            for i in np.flatnonzero(ended):   # SAME_STEP autoreset: the episode's last obs is in final_obs
+                real_next[i] = infos["final_obs"][i]
+            self.replay.add(self._obs, real_next, np.asarray(terminated, dtype=np.float32), actions,
+                            np.asarray(reward, dtype=np.float32))
+            self._ep_ret += reward
+            self._ep_len += 1
+            for i in np.flatnonzero(ended):
+                self.recent.append((float(self._ep_ret[i]), int(self._ep_len[i])))
+                self._ep_ret[i], self._ep_len[i] = 0.0, 0
+            self._obs = next_obs
+            self.step += n
+            if len(self.replay) >= cfg.learning_starts:
+                self._update_credit += n * cfg.updates_per_step
+                while self._update_credit >= 1.0:
+                    self.update()
+                    self._update_credit -= 1.0
+        return self._stats
+
+    def update(self) -> dict[str, torch.Tensor]:
+        """One critic, actor, temperature and target step on a replay batch."""
+        batch = self.replay.sample(self.cfg.batch_size, self.rng)
+        target = soft_td_target(batch["rewards"], batch["absorbing"], self.sac.target_soft_value(batch["next_obs"]),
+                                self.sac.gamma)
+        q1, q2 = self.sac.critic(batch["obs"], batch["actions"])
+        loss = twin_critic_loss(q1, q2, target)
+        self.sac.critic_step(loss)
+        info = self.sac.actor_step(batch["obs"])
+        self.sac.update_target()
+        self.n_updates += 1
+        info["critic_loss"] = loss.detach()
+        self._stats = info
+        return info
+
+    def progress_suffix(self, stats: Mapping[str, Any]) -> str:
+        s = {k: float(v) for k, v in stats.items()}   # one device sync per progress line, not per update
+        return (f"updates {self.n_updates} | q_loss {s.get('critic_loss', 0):.3f} "
+                f"alpha {s.get('alpha', 0):.4f} entropy {s.get('entropy', 0):.2f}")

@@ -1,0 +1,79 @@
+"""SAC expert trainer: the soft Bellman target, replay bookkeeping, resume (with and without the replay
+memory), squashed expert files, and learning on InvertedPendulum."""
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from loco_il.datasets.baselines import load_baselines
+from loco_il.experts import load_expert
+from loco_il.experts.sac import SACTrainer, soft_td_target, twin_critic_loss
+
+TASK = "InvertedPendulum.balance.perfect"
+
+
+def small_cfg(out_dir, **kw) -> dict:
+    cfg = dict(algo="sac", task=TASK, out_dir=str(out_dir), total_steps=300, random_steps=100, learning_starts=100,
+               batch_size=32, hidden=(32, 32), eval_interval=0, eval_episodes=2, snapshot_every=0,
+               log_interval_s=1000, checkpoint_minutes=100, device="cpu", async_envs=False, seed=0)
+    cfg.update(kw)
+    return cfg
+
+
+def quiet(_msg: str) -> None:
+    pass
+
+
+def test_soft_td_target_and_twin_loss_hand_computed():
+    r = torch.tensor([1.0, 2.0])
+    absorbing = torch.tensor([0.0, 1.0])
+    next_v = torch.tensor([10.0, 10.0])
+    y = soft_td_target(r, absorbing, next_v, gamma=0.9)
+    torch.testing.assert_close(y, torch.tensor([10.0, 2.0]))          # 1 + 0.9 * 10; absorbing: r only
+    loss = twin_critic_loss(torch.tensor([9.0, 2.0]), torch.tensor([10.0, 4.0]), y)
+    torch.testing.assert_close(loss, torch.tensor(0.5 + 2.0))         # mean(1, 0) + mean(0, 4)
+
+
+def test_replay_counts_updates_and_resume_with_replay(tmp_path):
+    tr = SACTrainer(small_cfg(tmp_path), log=quiet)
+    summary = tr.train()
+    assert summary["env_steps"] == 300 and len(tr.replay) == 300
+    assert tr.n_updates == 201      # one per env step from the step that stores the 100th transition
+    assert torch.isfinite(tr.replay.rewards[:300]).all() and tr.replay.rewards[:300].min() >= 0.0
+    ab = tr.replay.absorbing[:300]
+    assert 0 < ab.sum() < 300                       # falls are absorbing, nothing else
+    resumed = SACTrainer(small_cfg(tmp_path, total_steps=400), log=quiet)
+    assert resumed.resumed_from == 300 and len(resumed.replay) == 300 and resumed.n_updates == 201
+    resumed.train()
+    assert len(resumed.replay) == 400 and resumed.n_updates == 301
+
+
+def test_resume_without_replay_refills_before_updating(tmp_path):
+    SACTrainer(small_cfg(tmp_path, checkpoint_replay=False), log=quiet).train()
+    messages: list[str] = []
+    tr = SACTrainer(small_cfg(tmp_path, checkpoint_replay=False, total_steps=450), log=messages.append)
+    assert len(tr.replay) == 0 and any("no replay memory" in m for m in messages)
+    tr.train()
+    assert len(tr.replay) == 150 and tr.n_updates == 201 + 51   # updates resume at 100 stored transitions
+
+
+def test_expert_file_is_the_squashed_deterministic_policy(tmp_path):
+    tr = SACTrainer(small_cfg(tmp_path, total_steps=200), log=quiet)
+    tr.train()
+    expert = load_expert(tmp_path / "final.pt")
+    assert expert.squash and expert.metadata["algorithm"] == "SAC" and expert.metadata["squash"] is True
+    obs = np.random.default_rng(0).normal(size=(16, 4))
+    with torch.no_grad():
+        ref = torch.tanh(tr.policy.net(torch.as_tensor(obs, dtype=torch.float32)).chunk(2, -1)[0]).double().numpy()
+    np.testing.assert_allclose(expert(obs), ref, atol=1e-6)
+    noisy = expert.act(obs, deterministic=False, rng=np.random.default_rng(1))
+    assert np.abs(noisy).max() < 1.0 and not np.allclose(noisy, expert(obs))
+    np.testing.assert_array_equal(noisy, expert.act(obs, deterministic=False, rng=np.random.default_rng(1)))
+
+
+def test_sac_learns_inverted_pendulum(tmp_path):
+    random_return = load_baselines()["InvertedPendulum.balance"]["random"]["return_mean"]
+    cfg = small_cfg(tmp_path, total_steps=3000, random_steps=500, learning_starts=500, batch_size=256,
+                    hidden=(256, 256), eval_interval=1000, eval_episodes=5)
+    summary = SACTrainer(cfg, log=quiet).train()
+    assert summary["best_eval_return"] >= 5 * random_return, (summary, random_return)
