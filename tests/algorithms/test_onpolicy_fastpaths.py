@@ -2,18 +2,23 @@
 
 * `MLPLinearization` (hand-written J t / J^T u of an `mlp`) against torch.func.jvp / autograd;
 * `GaussianFisher` (closed-form F v = J^T M J v) against the double backward of the mean KL that
-  `trpo_step` used before, and a whole TRPO step with either product.
+  `trpo_step` used before, and a whole TRPO step with either product;
+* the numpy actor of `ILAgent._act` against the torch forward `_act_torch`.
 """
 from __future__ import annotations
 
+import numpy as np
 import pytest
 import torch
 from torch import nn
 from torch.nn.utils import parameters_to_vector
 
 from loco_il.algorithms.common import onpolicy
-from loco_il.algorithms.common.networks import GaussianPolicy, MLPLinearization, mlp
+from loco_il.algorithms.common.networks import GaussianPolicy, MLPLinearization, NumpyMLP, mlp
 from loco_il.algorithms.common.onpolicy import ObsNormalizedPolicy, gaussian_kl, trpo_step
+from loco_il.algorithms.gail import GAIL
+from loco_il.algorithms.sqil import SQIL
+from tests.algorithms.test_onpolicy_losses import SMALL, fake_dataset, fake_expert, mdp_info
 
 torch.set_num_threads(1)
 
@@ -114,3 +119,81 @@ def test_trpo_step_same_parameters_with_either_fisher_product(monkeypatch):
     assert info_fast["accepted"] == info_ref["accepted"] > 0
     assert info_fast["kl"] == pytest.approx(info_ref["kl"], rel=1e-4)
     assert (fast - ref).abs().max() <= 1e-5
+
+
+# ---------------------------------------------------------------------------- numpy actor
+def test_numpy_mlp_matches_torch_forward():
+    torch.manual_seed(0)
+    for activation in (nn.ReLU, nn.Tanh):
+        net = mlp(7, 4, (64, 32), activation)
+        x = torch.randn(7)
+        assert np.allclose(NumpyMLP(net)(x.numpy()), net(x).detach().numpy(), atol=1e-5)
+    with pytest.raises(TypeError):
+        NumpyMLP(mlp(7, 4, (8,), nn.ELU))
+
+
+def _gail(seed=0):
+    torch.manual_seed(seed)  # the policy's initial weights
+    agent = GAIL(mdp_info(), GaussianPolicy(4, 1, hidden=(32, 16), squash=False), seed=seed, **SMALL)
+    agent.set_expert(fake_expert())
+    return agent
+
+
+def _sqil(seed=0):
+    torch.manual_seed(seed)
+    return SQIL(mdp_info(), GaussianPolicy(4, 1, hidden=(32, 16), squash=True), seed=seed)
+
+
+def _assert_numpy_actor_matches_torch(agent, states):
+    assert agent._numpy_mean_log_std() is not None  # the numpy path is the one under test
+    module = agent.policy_module
+    for s in states:
+        mean, log_std = agent._numpy_mean_log_std()(s.astype(np.float32))
+        t_mean, t_log_std = module._mean_log_std(torch.as_tensor(s, dtype=torch.float32).reshape(1, -1))
+        assert np.allclose(mean, t_mean[0].detach().numpy(), atol=1e-5)
+        assert np.allclose(log_std, t_log_std[0].detach().numpy(), atol=1e-6)
+        for deterministic in (True, False):
+            agent.deterministic = deterministic
+            state = agent.torch_generator.get_state()
+            a_numpy = agent._act(s)
+            agent.torch_generator.set_state(state)
+            a_torch = agent._act_torch(s)
+            assert a_numpy.dtype == np.float64 and a_numpy.shape == a_torch.shape
+            assert np.allclose(a_numpy, a_torch, atol=1e-5)
+    agent.deterministic = False
+
+
+@pytest.mark.parametrize("make", [_gail, _sqil], ids=["gail-obs-normalized", "sqil-squashed"])
+def test_numpy_actor_same_actions_as_torch_forward(make):
+    agent = make()
+    states = np.random.default_rng(0).normal(size=(10, 4)) * 3
+    _assert_numpy_actor_matches_torch(agent, states)
+    # reproducible from the seed: a second agent draws the same actions
+    twin1, twin2 = make(seed=5), make(seed=5)
+    seq1, seq2 = [twin1.draw_action(s) for s in states], [twin2.draw_action(s) for s in states]
+    assert all(np.array_equal(x, y) for x, y in zip(seq1, seq2))
+
+
+def test_numpy_actor_follows_fits_optimizer_steps_and_checkpoints(tmp_path):
+    agent = _gail()
+    states = np.random.default_rng(1).normal(size=(4, 4)) * 2
+    agent.draw_action(states[0])  # builds the numpy actor
+    agent.fit(fake_dataset())  # TRPO replaces the parameter storages, the normalizer moves in place
+    _assert_numpy_actor_matches_torch(agent, states)
+    with torch.no_grad():  # an in-place change of a parameter and of the normalizer
+        agent.policy_module.policy.net[0].weight.mul_(1.5)
+        agent.policy_module.normalizer.mean.add_(0.3)
+    _assert_numpy_actor_matches_torch(agent, states)
+    other = _gail(seed=3)
+    other.fit(fake_dataset(seed=4))
+    other.save(tmp_path / "other.pt")
+    agent.load(tmp_path / "other.pt")
+    _assert_numpy_actor_matches_torch(agent, states)
+    agent.deterministic = other.deterministic = True
+    assert np.allclose(agent.draw_action(states[0]), other.draw_action(states[0]), atol=1e-6)
+
+
+def test_numpy_actor_off_for_unsupported_policies():
+    agent = GAIL(mdp_info(), GaussianPolicy(4, 1, hidden=(8,), squash=False, activation=nn.ELU), seed=0, **SMALL)
+    assert agent._numpy_mean_log_std() is None
+    assert agent.draw_action(np.ones(4)).shape == (1,)

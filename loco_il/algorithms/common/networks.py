@@ -1,15 +1,17 @@
 """Network building blocks shared by every algorithm.
 
 Kept deliberately small: an MLP builder, a diagonal Gaussian policy (optionally
-tanh-squashed, as SAC needs), a fused twin Q critic and `MLPLinearization` (hand-written
+tanh-squashed, as SAC needs), a fused twin Q critic, `NumpyMLP` (an `mlp` forward for one
+observation on numpy views of the parameters, for acting) and `MLPLinearization` (hand-written
 Jacobian-vector products of an `mlp`, for TRPO's Fisher-vector products). Algorithms compose
 these; none of them defines its own copy.
 """
 from __future__ import annotations
 
 import math
-from typing import Sequence
+from typing import Callable, Sequence
 
+import numpy as np
 import torch
 from torch import nn
 
@@ -87,6 +89,20 @@ class GaussianPolicy(nn.Module):
         mean, _ = self._mean_log_std(obs)
         return torch.tanh(mean) if self.squash else mean
 
+    def numpy_mean_log_std(self) -> tuple[Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]], list]:
+        """`_mean_log_std` for ONE float32 observation (shape (obs_dim,)) in numpy, on views of the
+        parameters (see `NumpyMLP`), and the tensors viewed. Raises TypeError when not possible."""
+        net = NumpyMLP(self.net)
+        if self.squash:
+            act_dim = self.act_dim
+
+            def mean_log_std(x):
+                out = net(x)
+                return out[:act_dim], np.clip(out[act_dim:], LOG_STD_MIN, LOG_STD_MAX)
+            return mean_log_std, net.tensors
+        log_std = numpy_view(self.log_std)
+        return (lambda x: (net(x), log_std)), net.tensors + [self.log_std]
+
     def mean_mlp(self, obs: torch.Tensor) -> tuple[nn.Sequential, torch.Tensor]:
         """The network whose output is the mean, and its input for `obs` (unsquashed policies:
         mean = net(input), std = exp(log_std)); TRPO linearizes it for its Fisher-vector products."""
@@ -107,6 +123,52 @@ class TwinQ(nn.Module):
     def forward(self, obs: torch.Tensor, action: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         x = torch.cat([obs, action], dim=-1)
         return self.q1(x).squeeze(-1), self.q2(x).squeeze(-1)
+
+
+def numpy_view(t: torch.Tensor) -> np.ndarray:
+    """A numpy array sharing memory with a float32 CPU tensor: it follows in-place updates (optimizer steps,
+    `load_state_dict`), not a replaced storage (`param.data = ...`; compare `data_ptr()` to detect that)."""
+    if t.device.type != "cpu" or t.dtype != torch.float32:
+        raise TypeError(f"numpy_view: needs a float32 CPU tensor, got {t.dtype} on {t.device}")
+    return t.detach().numpy()
+
+
+class NumpyMLP:
+    """`net(x)` for one input vector with numpy on views of the parameters (float32, as torch computes).
+
+    For a single observation a torch forward is dominated by per-op dispatch (~100 us for a [512, 256]
+    policy), numpy's matrix-vector products by the arithmetic (~15 us), which matters because agents act
+    once per environment step. `tensors` lists the viewed tensors (to detect a replaced storage).
+    Supports `nn.Linear`, ReLU, Tanh and Identity; raises TypeError otherwise.
+    """
+
+    _ACTIVATIONS = {nn.ReLU: lambda h: np.maximum(h, 0.0, out=h), nn.Tanh: lambda h: np.tanh(h, out=h),
+                    nn.Identity: lambda h: h}
+
+    def __init__(self, net: nn.Sequential):
+        self.tensors: list[torch.Tensor] = []
+        self.layers: list = []
+        for module in net:
+            if isinstance(module, nn.Linear):
+                if module.bias is None:
+                    raise TypeError("NumpyMLP: Linear layers without bias are not supported")
+                self.tensors += [module.weight, module.bias]
+                self.layers.append((numpy_view(module.weight), numpy_view(module.bias)))
+            elif type(module) in self._ACTIVATIONS:
+                self.layers.append(self._ACTIVATIONS[type(module)])
+            else:
+                raise TypeError(f"NumpyMLP: unsupported layer {type(module).__name__}")
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        h = x
+        for layer in self.layers:
+            if isinstance(layer, tuple):
+                w, b = layer
+                h = w @ h
+                h += b
+            else:
+                h = layer(h)
+        return h
 
 
 #: element-wise activations whose Jacobian is diagonal (MLPLinearization takes their derivative by autograd)

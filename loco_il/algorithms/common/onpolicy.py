@@ -25,7 +25,7 @@ from torch import nn
 from torch.nn.utils import parameters_to_vector, vector_to_parameters
 
 from loco_il.algorithms.common.discriminator import RunningNormalizer
-from loco_il.algorithms.common.networks import GaussianPolicy, MLPLinearization, mlp
+from loco_il.algorithms.common.networks import GaussianPolicy, MLPLinearization, mlp, numpy_view
 
 
 class ObsNormalizedPolicy(nn.Module):
@@ -58,6 +58,20 @@ class ObsNormalizedPolicy(nn.Module):
 
     def mean_mlp(self, obs: torch.Tensor) -> tuple[nn.Sequential, torch.Tensor]:
         return self.policy.mean_mlp(self.norm(obs))
+
+    def numpy_mean_log_std(self):
+        """`GaussianPolicy.numpy_mean_log_std` behind the normalizer (same float32 arithmetic as `norm`)."""
+        mean_log_std, tensors = self.policy.numpy_mean_log_std()
+        if not self.normalize:
+            return mean_log_std, tensors
+        n = self.normalizer
+        mean, var, eps, clip = numpy_view(n.mean), numpy_view(n.var), n.eps, n.clip
+
+        def normalized(x):
+            z = x - mean
+            z /= np.sqrt(var + eps)
+            return mean_log_std(np.minimum(np.maximum(z, -clip, out=z), clip, out=z))  # = clip, 2x cheaper
+        return normalized, tensors + [n.mean, n.var]
 
     @property
     def log_std(self) -> nn.Parameter:
