@@ -10,7 +10,13 @@ What the base class adds:
     (a subclass registers itself by defining the class attribute `name`);
   * `supported_datasets` / `check_dataset_type` (which dataset types an agent can learn from);
   * `draw_action` from a torch `GaussianPolicy` (stochastic while training, the mean
-    action when `agent.deterministic = True`);
+    action when `agent.deterministic = True`). Agents act once per environment step, one observation at
+    a time, where a torch forward costs about as much as a physics step (op dispatch, not arithmetic):
+    for a CPU policy that offers `numpy_mean_log_std()` (GaussianPolicy, ObsNormalizedPolicy) the mean
+    and log-std are computed with numpy on views of the parameters (`networks.NumpyMLP`), rebuilt when a
+    parameter's storage is replaced; the exploration noise still comes from the agent's seeded torch
+    generator, so the actions are those of the torch forward (float32 rounding aside) and reproducible.
+    GPU policies and other modules use the torch forward (`_act_torch`);
   * checkpointing: `state_dict` / `load_state_dict` cover every registered module, optimizer,
     plain attribute (counters, temperature, ...) and the RNG states; `save(path)` writes them
     atomically together with the constructor arguments, so both `SomeAgent.load(path)`
@@ -130,9 +136,15 @@ class ILAgent(Agent):
         else:
             self.torch_generator.seed()
         self.expert = None
+        self._numpy_actor: tuple | None = None  # (mean_log_std, viewed tensors, their data_ptrs), see _act
         self._ckpt_objects: dict[str, Any] = {}
         self._ckpt_attrs: list[str] = []
         self._register_checkpoint("policy", self.policy_module)
+
+    def __getstate__(self) -> dict:
+        state = self.__dict__.copy()
+        state["_numpy_actor"] = None  # closures over numpy views: rebuilt on the next action
+        return state
 
     def _register_checkpoint(self, key: str, obj: Any) -> None:
         """Include `obj.state_dict()` (module, optimizer, buffer, ...) in checkpoints under `key`."""
@@ -172,9 +184,43 @@ class ILAgent(Agent):
             return action
         return self._act(state)
 
-    @torch.inference_mode()
+    _NO_NUMPY_ACTOR = (None, (), ())  # the policy module has no numpy forward (GPU, other structure)
+
+    def _numpy_mean_log_std(self):
+        """The policy's numpy forward, rebuilt when one of the viewed tensors got a new storage (TRPO's
+        `vector_to_parameters`), or None when the torch forward must be used."""
+        cached = self._numpy_actor
+        if cached is not None:
+            fn, tensors, ptrs = cached
+            if all(t.data_ptr() == p for t, p in zip(tensors, ptrs)):
+                return fn
+        fn, tensors = None, ()
+        builder = getattr(self.policy_module, "numpy_mean_log_std", None)
+        if builder is not None and self.device.type == "cpu":
+            try:
+                fn, tensors = builder()
+            except TypeError:
+                pass
+        self._numpy_actor = (fn, tensors, tuple(t.data_ptr() for t in tensors)) if fn else self._NO_NUMPY_ACTOR
+        return fn
+
     def _act(self, state) -> np.ndarray:
-        # the hot path of every environment step: no autograd bookkeeping, no distribution object
+        # the hot path of every environment step (see the module docstring)
+        mean_log_std = self._numpy_mean_log_std()
+        if mean_log_std is None:
+            return self._act_torch(state)
+        mean, log_std = mean_log_std(np.asarray(state, dtype=np.float32).reshape(-1))
+        if self.deterministic:
+            pre = mean
+        else:  # the same draws as _act_torch's, from the same generator
+            noise = torch.randn((1, mean.shape[0]), generator=self.torch_generator).numpy()[0]
+            pre = mean + np.exp(log_std) * noise
+        action = np.tanh(pre) if getattr(self.policy_module, "squash", False) else pre
+        return action.astype(np.float64)
+
+    @torch.inference_mode()
+    def _act_torch(self, state) -> np.ndarray:
+        # no autograd bookkeeping, no distribution object
         obs = torch.as_tensor(state if isinstance(state, np.ndarray) else np.asarray(state),
                               dtype=torch.float32).reshape(1, -1)
         if self.device.type != "cpu":

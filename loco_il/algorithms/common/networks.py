@@ -1,14 +1,17 @@
 """Network building blocks shared by every algorithm.
 
 Kept deliberately small: an MLP builder, a diagonal Gaussian policy (optionally
-tanh-squashed, as SAC needs) and a fused twin Q critic. Algorithms compose these;
-none of them defines its own copy.
+tanh-squashed, as SAC needs), a fused twin Q critic, `NumpyMLP` (an `mlp` forward for one
+observation on numpy views of the parameters, for acting) and `MLPLinearization` (hand-written
+Jacobian-vector products of an `mlp`, for TRPO's Fisher-vector products). Algorithms compose
+these; none of them defines its own copy.
 """
 from __future__ import annotations
 
 import math
-from typing import Sequence
+from typing import Callable, Sequence
 
+import numpy as np
 import torch
 from torch import nn
 
@@ -86,6 +89,27 @@ class GaussianPolicy(nn.Module):
         mean, _ = self._mean_log_std(obs)
         return torch.tanh(mean) if self.squash else mean
 
+    def numpy_mean_log_std(self) -> tuple[Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]], list]:
+        """`_mean_log_std` for ONE float32 observation (shape (obs_dim,)) in numpy, on views of the
+        parameters (see `NumpyMLP`), and the tensors viewed. Raises TypeError when not possible."""
+        net = NumpyMLP(self.net)
+        if self.squash:
+            act_dim = self.act_dim
+
+            def mean_log_std(x):
+                out = net(x)
+                return out[:act_dim], np.clip(out[act_dim:], LOG_STD_MIN, LOG_STD_MAX)
+            return mean_log_std, net.tensors
+        log_std = numpy_view(self.log_std)
+        return (lambda x: (net(x), log_std)), net.tensors + [self.log_std]
+
+    def mean_mlp(self, obs: torch.Tensor) -> tuple[nn.Sequential, torch.Tensor]:
+        """The network whose output is the mean, and its input for `obs` (unsquashed policies:
+        mean = net(input), std = exp(log_std)); TRPO linearizes it for its Fisher-vector products."""
+        if self.squash:
+            raise ValueError("mean_mlp: a tanh-squashed policy has no separate mean network")
+        return self.net, obs
+
 
 class TwinQ(nn.Module):
     """Two Q-networks evaluated in one call: Q1(s, a), Q2(s, a), each of shape (batch,)."""
@@ -99,3 +123,132 @@ class TwinQ(nn.Module):
     def forward(self, obs: torch.Tensor, action: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         x = torch.cat([obs, action], dim=-1)
         return self.q1(x).squeeze(-1), self.q2(x).squeeze(-1)
+
+
+def numpy_view(t: torch.Tensor) -> np.ndarray:
+    """A numpy array sharing memory with a float32 CPU tensor: it follows in-place updates (optimizer steps,
+    `load_state_dict`), not a replaced storage (`param.data = ...`; compare `data_ptr()` to detect that)."""
+    if t.device.type != "cpu" or t.dtype != torch.float32:
+        raise TypeError(f"numpy_view: needs a float32 CPU tensor, got {t.dtype} on {t.device}")
+    return t.detach().numpy()
+
+
+class NumpyMLP:
+    """`net(x)` for one input vector with numpy on views of the parameters (float32, as torch computes).
+
+    For a single observation a torch forward is dominated by per-op dispatch (~100 us for a [512, 256]
+    policy), numpy's matrix-vector products by the arithmetic (~15 us), which matters because agents act
+    once per environment step. `tensors` lists the viewed tensors (to detect a replaced storage).
+    Supports `nn.Linear`, ReLU, Tanh and Identity; raises TypeError otherwise.
+    """
+
+    _ACTIVATIONS = {nn.ReLU: lambda h: np.maximum(h, 0.0, out=h), nn.Tanh: lambda h: np.tanh(h, out=h),
+                    nn.Identity: lambda h: h}
+
+    def __init__(self, net: nn.Sequential):
+        self.tensors: list[torch.Tensor] = []
+        self.layers: list = []
+        for module in net:
+            if isinstance(module, nn.Linear):
+                if module.bias is None:
+                    raise TypeError("NumpyMLP: Linear layers without bias are not supported")
+                self.tensors += [module.weight, module.bias]
+                self.layers.append((numpy_view(module.weight), numpy_view(module.bias)))
+            elif type(module) in self._ACTIVATIONS:
+                self.layers.append(self._ACTIVATIONS[type(module)])
+            else:
+                raise TypeError(f"NumpyMLP: unsupported layer {type(module).__name__}")
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        h = x
+        for layer in self.layers:
+            if isinstance(layer, tuple):
+                w, b = layer
+                h = w @ h
+                h += b
+            else:
+                h = layer(h)
+        return h
+
+
+#: element-wise activations whose Jacobian is diagonal (MLPLinearization takes their derivative by autograd)
+ELEMENTWISE_ACTIVATIONS = (nn.ReLU, nn.Tanh, nn.ELU, nn.LeakyReLU, nn.SiLU, nn.GELU, nn.Sigmoid, nn.Softplus,
+                           nn.Identity)
+
+
+class MLPLinearization:
+    """The first-order expansion of an `mlp(...)` network (`nn.Sequential` of `nn.Linear` and element-wise
+    activations) in its parameters, around the current parameters and at fixed inputs `x`.
+
+    `jvp(tangents)` = J t: the change of `net(x)` along a parameter direction t (a dict parameter ->
+    tangent); `vjp(u)` = J^T u: the gradient of sum(u * net(x)) per parameter. Both reuse the layer inputs
+    and activation derivatives stored at construction, so each costs two matrix products per `Linear`
+    layer (autograd's forward mode would redo the forward pass and a double backward costs about twice as
+    much): TRPO calls them 25+ times per update with the parameters fixed (`onpolicy.GaussianFisher`).
+    The parameters must not change while the object is in use.
+    """
+
+    def __init__(self, net: nn.Sequential, x: torch.Tensor):
+        if not isinstance(net, nn.Sequential):
+            raise TypeError(f"MLPLinearization needs an nn.Sequential (an `mlp`), got {type(net).__name__}")
+        self.linears: list[nn.Linear] = []
+        self.inputs: list[torch.Tensor] = []  # input of each Linear layer
+        self.derivs: list[torch.Tensor | None] = []  # derivative of the activations that follow it (None: none)
+        h = x.detach()
+        with torch.no_grad():
+            for module in net:
+                if isinstance(module, nn.Linear):
+                    self.linears.append(module)
+                    self.inputs.append(h)
+                    self.derivs.append(None)
+                    h = module(h)
+                elif isinstance(module, ELEMENTWISE_ACTIVATIONS):
+                    if not self.linears:
+                        raise TypeError("MLPLinearization: the network must start with an nn.Linear")
+                    if isinstance(module, nn.ReLU):  # the common case, without an autograd call
+                        d = (h > 0).to(h.dtype)
+                        h = module(h)
+                    else:
+                        with torch.enable_grad():
+                            pre = h.detach().requires_grad_(True)
+                            out = module(pre)
+                            d, = torch.autograd.grad(out.sum(), pre)  # diagonal Jacobian
+                        h = out.detach()
+                    prev = self.derivs[-1]
+                    self.derivs[-1] = d if prev is None else prev * d
+                else:
+                    raise TypeError(f"MLPLinearization: unsupported layer {type(module).__name__} "
+                                    f"(only nn.Linear and element-wise activations {ELEMENTWISE_ACTIVATIONS})")
+        self.output = h
+
+    def parameters(self) -> list[nn.Parameter]:
+        return [p for lin in self.linears for p in (lin.weight, lin.bias) if p is not None]
+
+    def jvp(self, tangents: dict) -> torch.Tensor:
+        """J t for the parameter tangents `tangents[param]` (every parameter of the network must be a key)."""
+        dh = None
+        for lin, xin, d in zip(self.linears, self.inputs, self.derivs):
+            out = xin @ tangents[lin.weight].t()
+            if lin.bias is not None:
+                out += tangents[lin.bias]
+            if dh is not None:
+                out.addmm_(dh, lin.weight.detach().t())
+            dh = out if d is None else out.mul_(d)
+        return dh
+
+    def vjp(self, u: torch.Tensor) -> dict:
+        """J^T u as a dict parameter -> gradient (u has the shape of the network's output)."""
+        grads = {}
+        g = u
+        for k in range(len(self.linears) - 1, -1, -1):
+            lin = self.linears[k]
+            if self.derivs[k] is not None:
+                g = g * self.derivs[k] if g is u else g.mul_(self.derivs[k])  # never modify the caller's u
+            x = self.inputs[k]
+            # same product, in the order BLAS runs fastest (long output rows): 4x faster for a narrow input
+            grads[lin.weight] = g.t() @ x if x.shape[1] >= g.shape[1] else (x.t() @ g).t()
+            if lin.bias is not None:
+                grads[lin.bias] = g.sum(0)
+            if k:
+                g = g @ lin.weight.detach()
+        return grads

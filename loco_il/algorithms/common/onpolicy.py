@@ -7,6 +7,9 @@
                    Appendix C): conjugate gradient on the Fisher-vector product of the mean KL, the step scaled
                    to KL = max_kl under the quadratic model, then a backtracking line search that accepts the
                    first candidate with KL <= max_kl and a surrogate improvement.
+* `GaussianFisher` the Fisher-vector product of that step in closed form, F v = J^T M J v (see its
+                   docstring): the same matrix as the Hessian of the mean KL that a double backward gives,
+                   at about half the cost (CG was ~2/3 of an on-policy fit with the double backward).
 * `TRPO`           GAE + trpo_step + a value function fitted by MSE/Adam on the lambda-returns.
 * `ObsNormalizedPolicy` a `GaussianPolicy` behind a `RunningNormalizer`; the normalizer is updated
                    only inside `fit` (never while acting), so evaluation does not move it.
@@ -22,7 +25,7 @@ from torch import nn
 from torch.nn.utils import parameters_to_vector, vector_to_parameters
 
 from loco_il.algorithms.common.discriminator import RunningNormalizer
-from loco_il.algorithms.common.networks import GaussianPolicy, mlp
+from loco_il.algorithms.common.networks import GaussianPolicy, MLPLinearization, mlp, numpy_view
 
 
 class ObsNormalizedPolicy(nn.Module):
@@ -52,6 +55,27 @@ class ObsNormalizedPolicy(nn.Module):
 
     def deterministic(self, obs: torch.Tensor) -> torch.Tensor:
         return self.policy.deterministic(self.norm(obs))
+
+    def mean_mlp(self, obs: torch.Tensor) -> tuple[nn.Sequential, torch.Tensor]:
+        return self.policy.mean_mlp(self.norm(obs))
+
+    def numpy_mean_log_std(self):
+        """`GaussianPolicy.numpy_mean_log_std` behind the normalizer (same float32 arithmetic as `norm`)."""
+        mean_log_std, tensors = self.policy.numpy_mean_log_std()
+        if not self.normalize:
+            return mean_log_std, tensors
+        n = self.normalizer
+        mean, var, eps, clip = numpy_view(n.mean), numpy_view(n.var), n.eps, n.clip
+
+        def normalized(x):
+            z = x - mean
+            z /= np.sqrt(var + eps)
+            return mean_log_std(np.minimum(np.maximum(z, -clip, out=z), clip, out=z))  # = clip, 2x cheaper
+        return normalized, tensors + [n.mean, n.var]
+
+    @property
+    def log_std(self) -> nn.Parameter:
+        return self.policy.log_std
 
 
 # ---------------------------------------------------------------------------- GAE
@@ -113,20 +137,59 @@ def surrogate(policy: nn.Module, obs: torch.Tensor, actions: torch.Tensor, advan
     return value
 
 
+class GaussianFisher:
+    """v -> F v for a diagonal Gaussian policy with mean = mlp(input) and a state-independent log-std.
+
+    F is the Hessian of KL_mean(theta) = mean_s KL(pi_old(.|s) || pi_theta(.|s)) at theta = theta_old, the
+    matrix TRPO's conjugate gradient needs. For a diagonal Gaussian the Hessian of the KL in the
+    distribution parameters (mu, log sigma) at pi = pi_old is diag(1 / sigma^2) for mu, 2 for log sigma and
+    0 between them (the first derivatives vanish there), so with J = d mu / d theta_net:
+
+        F v = (1/N) sum_s J_s^T diag(1 / sigma^2) J_s v_net   (+)   2 v_log_std
+
+    exactly the Hessian a double backward of the KL computes, but evaluated as one Jacobian-vector and one
+    vector-Jacobian product of the mean network (`MLPLinearization`, whose layer inputs are stored once per
+    TRPO step), i.e. 4 matrix products per layer instead of a second-order pass through autograd.
+    `params` fixes the order of the flat vectors (the policy's trainable parameters).
+    """
+
+    def __init__(self, policy: nn.Module, obs: torch.Tensor, params: Sequence[nn.Parameter]):
+        net, x = policy.mean_mlp(obs)
+        self.lin = MLPLinearization(net, x)
+        self.log_std_param = policy.log_std
+        self.params = list(params)
+        expected = set(self.lin.parameters()) | {self.log_std_param}
+        if set(self.params) != expected or len(self.params) != len(expected):
+            raise ValueError("GaussianFisher: the trainable parameters must be exactly those of the mean MLP "
+                             "and the log-std")
+        self.sizes = [p.numel() for p in self.params]
+        log_std = self.log_std_param.detach()
+        self.mean, self.std = self.lin.output, log_std.exp().expand_as(self.lin.output)
+        self.mean_weight = torch.exp(-2.0 * log_std) / obs.shape[0]  # diag(1/sigma^2) / N, per action dim
+
+    def __call__(self, v: torch.Tensor) -> torch.Tensor:
+        tangents = {p: t.view_as(p) for p, t in zip(self.params, v.split(self.sizes))}
+        grads = self.lin.vjp(self.lin.jvp(tangents).mul_(self.mean_weight))
+        grads[self.log_std_param] = 2.0 * tangents[self.log_std_param]
+        return torch.cat([grads[p].reshape(-1) for p in self.params])
+
+
 def trpo_step(policy: nn.Module, obs: torch.Tensor, actions: torch.Tensor, advantages: torch.Tensor,
               max_kl: float = 5e-3, cg_iters: int = 10, cg_damping: float = 1e-1,
               cg_residual_tol: float = 1e-10, line_search_steps: int = 10, backtrack_coeff: float = 0.5,
               ent_coef: float = 0.0) -> dict:
-    """One TRPO update of `policy` (anything with `distribution(obs)` and `log_prob(obs, a)`), in place.
+    """One TRPO update of `policy` in place: an unsquashed `GaussianPolicy` or an `ObsNormalizedPolicy`
+    (anything with `distribution(obs)`, `log_prob(obs, a)`, `mean_mlp(obs)` and a `log_std` parameter).
 
     Returns a dict with the accepted step fraction (0.0: rejected, parameters unchanged), the KL and
     the surrogate improvement.
     """
     params = [p for p in policy.parameters() if p.requires_grad]
-    with torch.no_grad():
-        old_dist = policy.distribution(obs)
-        old_dist = torch.distributions.Normal(old_dist.loc.clone(), old_dist.scale.clone())
-        old_log_prob = old_dist.log_prob(actions).sum(-1)
+    # The parameters do not move during conjugate gradient: the mean network is linearized once (its
+    # no-grad forward also gives the old distribution) and every Fisher-vector product reuses it.
+    fisher = GaussianFisher(policy, obs, params)
+    old_dist = torch.distributions.Normal(fisher.mean, fisher.std, validate_args=False)
+    old_log_prob = old_dist.log_prob(actions).sum(-1)
 
     surr = surrogate(policy, obs, actions, advantages, old_log_prob, ent_coef)
     grad = parameters_to_vector(torch.autograd.grad(surr, params))
@@ -134,14 +197,8 @@ def trpo_step(policy: nn.Module, obs: torch.Tensor, actions: torch.Tensor, advan
     if not torch.isfinite(grad).all() or grad.norm() < 1e-12:
         return info
 
-    # The parameters do not move during conjugate gradient, so the KL and its gradient graph are built
-    # once and every Fisher-vector product is one double-backward through that graph.
-    kl_graph = gaussian_kl(old_dist, policy.distribution(obs))
-    g_kl = parameters_to_vector(torch.autograd.grad(kl_graph, params, create_graph=True))
-
     def fisher_vector(v: torch.Tensor) -> torch.Tensor:
-        hv = parameters_to_vector(torch.autograd.grad(g_kl.dot(v), params, retain_graph=True))
-        return hv + cg_damping * v
+        return fisher(v) + cg_damping * v
 
     direction = conjugate_gradient(fisher_vector, grad, cg_iters, cg_residual_tol)
     shs = direction.dot(fisher_vector(direction))
