@@ -71,7 +71,7 @@ def get_baseline(task_id: str, path: str | Path | None = None) -> dict[str, Any]
         have = ", ".join(sorted(table)) or "(none)"
         raise BaselineMissingError(
             f"no baseline for {key} in {path or BASELINES_FILE} (tasks with one: {have}); measure it with "
-            f"`python -m loco_il.datasets.baselines update {key}` (needs an installed expert for the expert part)")
+            f"`python -m loco_il.datasets.baselines update {key}` (the expert part needs an installed or built-in expert)")
     return table[key]
 
 
