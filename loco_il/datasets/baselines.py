@@ -11,6 +11,7 @@ measured, each with how it was produced (command, seed, episodes, commit, simula
                                                        # `expert` (its description) and `source` instead
         datasets:
           perfect: {n_episodes, n_transitions, generation_seed, cache_key, command, commit, simulator, date}
+          preference: {..., levels: [{level, mean_return, std_return, snapshot}, ...]}
 
 ``normalized_score(task, ret) = (ret - random) / (expert - random)``: 0 = random policy,
 1 = expert. Update entries with::
@@ -197,6 +198,9 @@ def update_baseline(task_id: str, *, episodes: int = 10, seed: int = 0, random: 
         sizes[dataset] = {"n_episodes": data.n_trajectories, "n_transitions": data.n_transitions,
                           "generation_seed": int(seed), "cache_key": data.info.get("cache_key"),
                           "return_mean": data.info.get("expert_return_mean"), **_provenance(command)}
+        if data.info.get("levels"):     # preference: every level's measured return, worst first
+            sizes[dataset]["levels"] = [{k: lvl.get(k) for k in ("level", "mean_return", "std_return", "snapshot")}
+                                        for lvl in data.info["levels"]]
         entry["datasets"] = sizes
     table[key] = entry
     save_baselines(table, path)
