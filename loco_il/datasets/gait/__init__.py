@@ -7,6 +7,11 @@ and recorded as state-only datasets (:mod:`.provider`)::
 
     from loco_il.datasets.gait import quadruped_real_dataset
     data = quadruped_real_dataset(LocoEnv.make("UnitreeA1.hard.real"), n_episodes=10, seed=0)
+
+The same controller run at the env's control rate is the built-in expert of the quadrupeds' `simple`
+`perfect` / `preference` datasets (:mod:`.expert`, `TrotExpert`; model-based, not an RL policy)::
+
+    data = LocoEnv.make("UnitreeA1.simple.perfect").create_dataset()
 """
 from loco_il.datasets.gait.controller import ControllerParams, TrotController
 from loco_il.datasets.gait.cpg import GaitParams, PhaseOscillators

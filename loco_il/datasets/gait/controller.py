@@ -31,6 +31,9 @@ Each control step (the env's ``dt``, e.g. 10 ms) the controller
      (the offset adds the feed-forward and some damping the servos lack).
    ``tau_ff = J^T f`` is a gravity feed-forward: each stance foot pushes down with an equal share of
    the robot's weight.
+   As an env-level policy (`env_step_ctrl`, used by `expert.TrotExpert`) the controls are instead
+   computed once per env step from the state at its start (`held_ctrl`) and held over the substeps
+   by ``env.step``; the trot still walks that way (see the expert's docstring for the numbers).
 
 The simulation is driven directly through ``data.ctrl`` and ``mujoco.mj_step`` on the env's own
 model and data (same timestep, same substeps per env step); `provider.run_gait_episode` builds every
