@@ -34,10 +34,10 @@ Preference levels (`trot_levels`): the same expert with i.i.d. Gaussian noise of
 added to the normalized action each step (before the env's clipping; the recorded action is the
 noisy one), ``sigma_k = sigma_max / 2**k`` for k = 0..3, ``sigma_max`` per body
 (`PREFERENCE_NOISE_MAX`: A1 0.4, Go1 0.2 -- the position targets are more sensitive than the
-torques). The noise generator is seeded with the episode's reset seed. Measured returns (3
-episodes, 1000 steps): A1 sigma 0.4 / 0.2 / 0.1 / 0.05 -> 224 (2 of 3 fall) / 599 / 679 / 728;
-Go1 sigma 0.2 / 0.1 / 0.05 / 0.025 -> 119 (all fall) / 312 / 554 / 663. The preference provider
-ranks the sets by their measured mean return.
+torques). The noise generator is seeded with the episode's reset seed. Measured mean returns
+(the default 25 episodes per level, seed 0; ``baselines.yaml``): A1 sigma 0.4 / 0.2 / 0.1 / 0.05 ->
+142 (23 of 25 fall) / 565 / 669 / 729; Go1 sigma 0.2 / 0.1 / 0.05 / 0.025 -> 92 (22 of 25 fall) /
+319 / 552 / 664. The preference provider ranks the sets by their measured mean return.
 
 ``checksum()`` hashes `TROT_EXPERT_VERSION`, the task, the controller parameters, the variation
 ranges, the noise scale and the model's fingerprint: it is part of the datasets' cache key.
