@@ -7,9 +7,11 @@ measured, each with how it was produced (command, seed, episodes, commit, simula
       Hopper.run:
         random: {return_mean, return_std, episodes, seed, policy, command, commit, simulator, date}
         expert: {return_mean, return_std, episodes, seed, policy_checksum, expert_file, training_steps,
-                 command, commit, simulator, date}
+                 command, commit, simulator, date}    # a built-in (model-based) expert: expert_file null,
+                                                       # `expert` (its description) and `source` instead
         datasets:
           perfect: {n_episodes, n_transitions, generation_seed, cache_key, command, commit, simulator, date}
+          preference: {..., levels: [{level, mean_return, std_return, snapshot}, ...]}
 
 ``normalized_score(task, ret) = (ret - random) / (expert - random)``: 0 = random policy,
 1 = expert. Update entries with::
@@ -70,7 +72,7 @@ def get_baseline(task_id: str, path: str | Path | None = None) -> dict[str, Any]
         have = ", ".join(sorted(table)) or "(none)"
         raise BaselineMissingError(
             f"no baseline for {key} in {path or BASELINES_FILE} (tasks with one: {have}); measure it with "
-            f"`python -m loco_il.datasets.baselines update {key}` (needs an installed expert for the expert part)")
+            f"`python -m loco_il.datasets.baselines update {key}` (the expert part needs an installed or built-in expert)")
     return table[key]
 
 
@@ -97,8 +99,9 @@ def normalized_score(task_id: str, ret: Any, path: str | Path | None = None) -> 
 def evaluate(task_id: str, policy: Callable[[np.ndarray], np.ndarray] | None, episodes: int, seed: int,
              log: Callable[[str], None] | None = None) -> dict[str, Any]:
     """Mean/std return of a deterministic policy (None = uniform random actions in [-1, 1]) over
-    ``episodes`` episodes whose reset seeds come from ``episode_seeds(seed, episodes)``."""
-    from loco_il.datasets.providers.expert import episode_seeds
+    ``episodes`` episodes whose reset seeds come from ``episode_seeds(seed, episodes)`` (the policy's
+    optional ``start_episode(env, seed)`` hook is called after every reset, as in the dataset rollouts)."""
+    from loco_il.datasets.providers.expert import episode_seeds, start_episode
     from loco_il.environments.registry import make
     env = make(f"{_key(task_id)}.{_any_dataset(task_id)}")
     rng = np.random.default_rng(seed)
@@ -106,6 +109,8 @@ def evaluate(task_id: str, policy: Callable[[np.ndarray], np.ndarray] | None, ep
     for i, s in enumerate(episode_seeds(seed, episodes)):
         env.seed(int(s))
         obs = env.reset()
+        if policy is not None:
+            start_episode(policy, env, int(s))
         total, t = 0.0, 0
         for t in range(int(env.info.horizon)):
             a = rng.uniform(-1.0, 1.0, env.model.nu) if policy is None else np.clip(policy(obs), -1.0, 1.0)
@@ -171,14 +176,21 @@ def update_baseline(task_id: str, *, episodes: int = 10, seed: int = 0, random: 
                            "policy": "uniform random actions in [-1, 1] (numpy default_rng(seed))",
                            **_provenance(command)}
     if expert:
-        from loco_il.datasets.providers.expert import find_expert
-        from loco_il.experts.policy import load_expert
-        path_e = find_expert(key)
-        pol = load_expert(path_e)
-        meta = pol.metadata
+        from loco_il.datasets.providers.expert import NoExpertError, builtin_expert, find_expert, load_policy
+        try:
+            path_e: Path | None = find_expert(key)
+        except NoExpertError:
+            if builtin_expert(key) is None:
+                raise
+            path_e = None          # the task's built-in (model-based) expert
+        pol, where = load_policy(expert_path=path_e, key=key)
+        meta = getattr(pol, "metadata", None) or {}
         entry["expert"] = {**evaluate(key, pol, episodes, seed, log), "policy_checksum": pol.checksum(),
-                           "expert_file": _relative(path_e), "training_steps": meta.get("training_steps"),
-                           "training_commit": meta.get("commit"), **_provenance(command)}
+                           "expert_file": _relative(path_e) if path_e is not None else None,
+                           "training_steps": meta.get("training_steps"), "training_commit": meta.get("commit"),
+                           **({"expert": where, "source": meta["source"]} if path_e is None and meta.get("source")
+                              else {}),
+                           **_provenance(command)}
     if dataset is not None:
         from loco_il.datasets.create import create_dataset
         data = create_dataset(f"{key}.{dataset}", generation_seed=seed, verbose=log is not None)
@@ -186,6 +198,9 @@ def update_baseline(task_id: str, *, episodes: int = 10, seed: int = 0, random: 
         sizes[dataset] = {"n_episodes": data.n_trajectories, "n_transitions": data.n_transitions,
                           "generation_seed": int(seed), "cache_key": data.info.get("cache_key"),
                           "return_mean": data.info.get("expert_return_mean"), **_provenance(command)}
+        if data.info.get("levels"):     # preference: every level's measured return, worst first
+            sizes[dataset]["levels"] = [{k: lvl.get(k) for k in ("level", "mean_return", "std_return", "snapshot")}
+                                        for lvl in data.info["levels"]]
         entry["datasets"] = sizes
     table[key] = entry
     save_baselines(table, path)

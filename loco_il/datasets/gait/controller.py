@@ -31,6 +31,9 @@ Each control step (the env's ``dt``, e.g. 10 ms) the controller
      (the offset adds the feed-forward and some damping the servos lack).
    ``tau_ff = J^T f`` is a gravity feed-forward: each stance foot pushes down with an equal share of
    the robot's weight.
+   As an env-level policy (`env_step_ctrl`, used by `expert.TrotExpert`) the controls are instead
+   computed once per env step from the state at its start (`held_ctrl`) and held over the substeps
+   by ``env.step``; the trot still walks that way (see the expert's docstring for the numbers).
 
 The simulation is driven directly through ``data.ctrl`` and ``mujoco.mj_step`` on the env's own
 model and data (same timestep, same substeps per env step); `provider.run_gait_episode` builds every
@@ -287,6 +290,34 @@ class TrotController:
         """One env step: plan, then simulate ``n_substeps`` physics steps."""
         self.plan()
         self.actuate()
+
+    def held_ctrl(self) -> np.ndarray:
+        """The leg actuators' controls computed once from the current state and meant to be held over the
+        whole env step (what an env-level policy sends; `TrotController.actuate` instead recomputes them
+        every substep): torque motors ``tau = Kp (q_ref - q) + Kd (dq_ref - dq) + tau_ff`` with the state
+        at the start of the step and the end-of-step target ``q_ref``; position servos the target
+        ``q_ref`` plus the feed-forward / damping offset. Clipped to the control ranges; ordered as
+        ``self.act``. Call after `plan`."""
+        d = self.data
+        q, dq = d.qpos[self.q_adr], d.qvel[self.v_adr]
+        dq_ref = (self.q_ref - self.q_prev) / self.dt
+        if self.position_servo:
+            extra = self.tau_ff
+            if self.params.servo_kd:
+                extra = extra + self.params.servo_kd * (dq_ref - dq)
+            ctrl = self.q_ref + extra / self.servo_kp
+        else:
+            tau = self.params.kp * (self.q_ref - q) + self.params.kd * (dq_ref - dq) + self.tau_ff
+            ctrl = tau / self.gear
+        return np.clip(ctrl, self.ctrl_lo, self.ctrl_hi)
+
+    def env_step_ctrl(self) -> np.ndarray:
+        """One env step at the env's control rate: `plan`, then `held_ctrl` (nothing is simulated; the
+        caller applies the controls for the step, e.g. through ``env.step``)."""
+        self.plan()
+        ctrl = self.held_ctrl()
+        self.t += self.dt
+        return ctrl
 
     def normalized_ctrl(self) -> np.ndarray:
         """The current ``data.ctrl`` as the env's normalized action in [-1, 1] (for reward contexts)."""

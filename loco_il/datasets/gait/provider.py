@@ -20,6 +20,13 @@ and its direction within ``direction_tolerance_deg`` of the command. Rejected ep
 further seeds (up to ``max_attempts``). ``info["gait_quality"]`` holds the quality numbers: mean speed,
 direction and heading errors, foot slip during stance, trunk tilt, mean reward, fraction kept.
 
+The same controller is also the quadrupeds' `perfect` / `preference` expert (:mod:`.expert`,
+`TrotExpert`): there it acts as an env-level policy -- one normalized action per env step, computed
+from the state at the start of the step and held by the env over its substeps (the torques of the
+PD loop here, recomputed every substep, are not an env action) -- so those datasets have actions
+that replay exactly. That expert is a model-based controller, not an RL policy; its returns are in
+``baselines.yaml``.
+
 Dispatch: `is_quadruped(env)` tells whether an env's `real` data comes from here;
 `quadruped_real_provider` has the provider signature (``provider(env, **kwargs)``, cached on disk like
 the `perfect` data); `real_dispatcher(other)` wraps another `real` provider (the humanoids' motion

@@ -1,7 +1,10 @@
 """`perfect` and `preference` datasets: rollouts of trained experts, cached on disk.
 
 **perfect** -- deterministic rollouts of the task's expert (`ExpertPolicy.__call__`, the Gaussian's
-mean) in a fresh env of the same body and task. Episode ``i`` starts from
+mean) in a fresh env of the same body and task. The expert is an installed ``expert.pt`` (see
+`find_expert`), else the task's *built-in* expert (`register_builtin_expert`: a model-based
+controller that needs no weights, e.g. the quadrupeds' trot controller of
+:mod:`loco_il.datasets.gait.expert`). Episode ``i`` starts from
 ``env.seed(episode_seeds(seed, n)[i]); env.reset()``: the seeds are derived from one base seed
 (``numpy.random.SeedSequence(seed, spawn_key=(i,))``), so asking for more episodes only appends.
 The recorded actions are exactly the ones passed to ``env.step`` (clipped to [-1, 1] *before*
@@ -9,7 +12,7 @@ recording, so a replay is exact), rewards are the task's default reward, ``absor
 termination (fall or divergence) and ``last`` also marks the time limit.
 
 **preference** -- the same rollouts for several snapshots of increasing quality (at least 4),
-one set per snapshot; sets are ordered by their measured mean return, worst first, and labelled
+one set per snapshot (installed ``snapshots/level_<k>.pt``, else the built-in expert's levels); sets are ordered by their measured mean return, worst first, and labelled
 ``level`` 0 (worst) .. K-1 (best).
 
 **Observations.** A dataset is always recorded with FULL observations: it is generated in the
@@ -23,7 +26,15 @@ start of every episode (``qpos``, ``qvel``) and the episode's reset seed are kep
 :class:`InitStates`, saved next to the dataset as ``<name>.init_states.npz``. Replaying
 episode ``i`` from ``(qpos[i], qvel[i])`` with its recorded actions reproduces its observations
 exactly (:func:`replay_episode`; tasks with a sampled command also need the reset seed, which
-replays the command).
+replays the command). Every generated dataset is checked: its first episode is replayed this
+way and must reproduce the recorded observations, rewards and flags (else :class:`DatasetError`).
+
+**Policy interface.** ``policy(obs) -> action`` and ``policy.checksum() -> str``; optional
+``obs_dim``, ``act_dim``, ``metadata``, ``description`` (a one-line name for logs and ``info``) and
+``start_episode(env, seed)``: called right after ``env.seed(seed); env.reset()`` of every episode,
+before the first call, with the env being rolled out. A policy that needs the simulator state (not
+only the observation) reads ``env.model`` / ``env.data`` there and in its calls, but never writes to
+them (so the recorded actions replay exactly); anything it draws at random comes from ``seed``.
 
 **Cache.** ``$LOCO_IL_DATASETS`` or ``~/.cache/loco_il/datasets``::
 
@@ -63,6 +74,9 @@ MIN_PREFERENCE_LEVELS = 4
 SOURCE_PERFECT = "expert rollout"
 SOURCE_PREFERENCE = "expert snapshot rollout"
 
+#: Modules imported (once) before looking up a built-in expert; each registers its experts.
+BUILTIN_EXPERT_MODULES = ("loco_il.datasets.gait.expert",)
+
 #: Counters for tests and diagnostics: "generated" (datasets rolled out), "cache_hits".
 STATS: collections.Counter = collections.Counter()
 
@@ -71,6 +85,52 @@ Policy = Callable[[np.ndarray], np.ndarray]
 
 class NoExpertError(DatasetError):
     """No expert (or no preference snapshots) is available for a task."""
+
+
+# ----------------------------------------------------------------------------- built-in experts
+
+
+@dataclass(frozen=True)
+class BuiltinExpert:
+    """A task's expert that needs no weight file (a model-based controller).
+
+    ``expert(env_or_task_id) -> policy`` builds the expert; ``levels(env_or_task_id) -> [policy, ...]``
+    the preference levels (>= 4 degraded versions), or None. ``description`` says what it is (it is
+    recorded in dataset ``info`` and baselines).
+    """
+
+    expert: Callable[[Any], Any]
+    levels: Callable[[Any], list[Any]] | None
+    description: str
+
+
+_BUILTIN: dict[str, BuiltinExpert] = {}
+_builtin_modules_loaded = False
+
+
+def register_builtin_expert(key: str, expert: Callable[[Any], Any], levels: Callable[[Any], list[Any]] | None = None,
+                            description: str = "", *, replace: bool = False) -> None:
+    """Register the built-in expert of a task key ``<Body>.<task>`` (used when no ``expert.pt`` is installed)."""
+    if key in _BUILTIN and not replace:
+        raise ValueError(f"a built-in expert for {key} is already registered; pass replace=True to override it")
+    _BUILTIN[key] = BuiltinExpert(expert, levels, description)
+
+
+def builtin_expert(key: str) -> BuiltinExpert | None:
+    """The built-in expert of a task key, or None."""
+    global _builtin_modules_loaded
+    if not _builtin_modules_loaded:
+        import importlib
+        _builtin_modules_loaded = True
+        for name in BUILTIN_EXPERT_MODULES:
+            importlib.import_module(name)
+    return _BUILTIN.get(key)
+
+
+def builtin_experts() -> list[str]:
+    """Task keys that have a built-in expert."""
+    builtin_expert("")
+    return sorted(_BUILTIN)
 
 
 # ----------------------------------------------------------------------------- paths
@@ -101,7 +161,8 @@ def task_key(env_or_id: Any) -> str:
 
 
 def available_experts() -> list[str]:
-    """Task keys (``<Body>.<task>``) that have an ``expert.pt`` in the search path."""
+    """Task keys (``<Body>.<task>``) that have an ``expert.pt`` in the search path (built-in experts:
+    `builtin_experts`)."""
     found = set()
     for root in expert_search_path():
         if root.is_dir():
@@ -133,7 +194,8 @@ def find_expert(key: str) -> Path:
     have = available_experts()
     raise NoExpertError(
         f"no expert for {key}: looked for {key}/expert.pt in {', '.join(str(r) for r in expert_search_path())}. "
-        f"Tasks with an expert: {', '.join(have) if have else '(none installed)'}. To get one, {_train_hint(key)}.")
+        f"Tasks with an expert: {', '.join(have) if have else '(none installed)'}{_builtin_note()}. "
+        f"To get one, {_train_hint(key)}.")
 
 
 def find_snapshots(key: str) -> list[Path]:
@@ -147,10 +209,15 @@ def find_snapshots(key: str) -> list[Path]:
     raise NoExpertError(
         f"no preference snapshots for {key}: looked for {key}/snapshots/level_<k>.pt in "
         f"{', '.join(str(r) for r in expert_search_path())}. Tasks with snapshots: "
-        f"{', '.join(have) if have else '(none installed)'}. Train an expert with "
+        f"{', '.join(have) if have else '(none installed)'}{_builtin_note()}. Train an expert with "
         f"`python -m loco_il.experts train task={key}` (it writes snapshots/step_*.pt), copy "
         f">= {MIN_PREFERENCE_LEVELS} snapshots of increasing quality to {Path(SHIPPED_DIR) / key / 'snapshots'}"
         f"/level_<k>.pt, or pass snapshots=[file.pt, ...]")
+
+
+def _builtin_note() -> str:
+    keys = builtin_experts()
+    return f" (built-in model-based experts, no file needed: {', '.join(keys)})" if keys else ""
 
 
 def _level_number(path: Path) -> tuple[int, str]:
@@ -172,15 +239,34 @@ def _policy_checksum(policy: Any) -> str:
     return value
 
 
-def load_policy(expert: Any = None, expert_path: str | os.PathLike | None = None, *, key: str) -> tuple[Any, str]:
-    """(policy, description): an expert object as given, a file loaded with `load_expert`, or the
-    task's installed expert."""
+def describe_policy(policy: Any) -> str:
+    """A policy object's ``description`` attribute, else ``<ClassName object>``."""
+    text = getattr(policy, "description", None)
+    return text if isinstance(text, str) and text else f"<{type(policy).__name__} object>"
+
+
+def load_policy(expert: Any = None, expert_path: str | os.PathLike | None = None, *, key: str,
+                env: Any = None) -> tuple[Any, str]:
+    """(policy, description): an expert object as given, a file loaded with `load_expert`, the
+    task's installed expert, or else its built-in expert (built for ``env``, a full-observation env of
+    the task; default: one made from ``key``)."""
     if expert is not None and expert_path is not None:
         raise ValueError("pass either expert= or expert_path=, not both")
     if expert is not None:
         _policy_checksum(expert)
-        return expert, f"<{type(expert).__name__} object>"
-    path = Path(expert_path) if expert_path is not None else find_expert(key)
+        return expert, describe_policy(expert)
+    if expert_path is None:
+        try:
+            path = find_expert(key)
+        except NoExpertError:
+            builtin = builtin_expert(key)
+            if builtin is None:
+                raise
+            policy = builtin.expert(env if env is not None else key)
+            _policy_checksum(policy)
+            return policy, describe_policy(policy)
+    else:
+        path = Path(expert_path)
     if not path.is_file():
         raise NoExpertError(f"expert file {path} does not exist")
     from loco_il.experts.policy import load_expert
@@ -211,7 +297,8 @@ def _check_policy(policy: Any, key: str, obs_dim: int, act_dim: int, where: str)
 
 def _expert_meta(policy: Any) -> dict[str, Any]:
     meta = getattr(policy, "metadata", None) or {}
-    keep = ("task_id", "training_steps", "eval_return", "eval_return_std", "commit", "algorithm", "created")
+    keep = ("task_id", "training_steps", "eval_return", "eval_return_std", "commit", "algorithm", "created",
+            "source", "controller_version", "action_noise")
     return {k: meta[k] for k in keep if k in meta}
 
 
@@ -304,14 +391,25 @@ def _log_default(msg: str) -> None:
     print(msg, file=sys.stderr, flush=True)
 
 
+def start_episode(policy: Any, env: Any, seed: int) -> None:
+    """Call the policy's optional ``start_episode(env, seed)`` hook (see the module docstring)."""
+    hook = getattr(policy, "start_episode", None)
+    if callable(hook):
+        hook(env, int(seed))
+
+
 def rollout(env: Any, policy: Policy, seeds: Sequence[int], *, info: Mapping[str, Any] | None = None,
-            log: Callable[[str], None] | None = None, label: str = "") -> tuple[Trajectories, InitStates]:
+            log: Callable[[str], None] | None = None, label: str = "",
+            horizon: int | None = None) -> tuple[Trajectories, InitStates]:
     """Roll out ``policy`` deterministically, one episode per seed, and record everything.
 
-    ``env`` should be a full-observation LocoEnv. The returned dataset's info is ``info`` plus
-    ``episode_returns`` and ``expert_return_mean`` / ``expert_return_std``.
+    ``env`` should be a full-observation LocoEnv; episodes last at most ``horizon`` steps (default:
+    the task's). The returned dataset's info is ``info`` plus ``episode_returns`` and
+    ``expert_return_mean`` / ``expert_return_std``.
     """
-    horizon = int(env.info.horizon)
+    horizon = int(env.info.horizon if horizon is None else horizon)
+    if horizon < 1:
+        raise ValueError(f"horizon must be >= 1, got {horizon}")
     nu = int(env.model.nu)
     obs_l, nobs_l, act_l, rew_l, abs_l, last_l = [], [], [], [], [], []
     qpos0, qvel0, returns, lengths = [], [], [], []
@@ -324,6 +422,7 @@ def rollout(env: Any, policy: Policy, seeds: Sequence[int], *, info: Mapping[str
         q, v = env.get_sim_state()
         qpos0.append(q)
         qvel0.append(v)
+        start_episode(policy, env, int(s))
         ep_obs, ep_act, ep_rew, ep_next = [], [], [], []
         absorbing = False
         for t in range(horizon):
@@ -410,14 +509,38 @@ def _regen_hint(path: Path) -> str:
             f".init_states.npz and call env.create_dataset() again)")
 
 
+def verify_replay(env: Any, data: Trajectories, init: InitStates, episode: int = 0, atol: float = 1e-9) -> None:
+    """Replay one episode of a rollout dataset from its initial state with its actions
+    (`replay_episode`, with its reset seed); :class:`DatasetError` if the observations, rewards or
+    flags differ."""
+    start, stop = data.episode_bounds()[episode]
+    out = replay_episode(env, init.qpos[episode], init.qvel[episode], data.actions[start:stop],
+                         seed=int(init.seeds[episode]))
+    ok = (len(out["obs"]) == stop - start
+          and np.allclose(out["obs"], data.obs[start:stop], rtol=0, atol=atol)
+          and np.allclose(out["next_obs"], data.next_obs[start:stop], rtol=0, atol=atol)
+          and np.allclose(out["rewards"], data.rewards[start:stop], rtol=0, atol=atol)
+          and np.array_equal(out["absorbing"], data.absorbing[start:stop]))
+    if not ok:
+        raise DatasetError(
+            f"{data.info.get('task_id', 'the dataset')}: replaying episode {episode} from its initial state with its "
+            f"recorded actions does not reproduce its observations (the policy "
+            f"{data.info.get('expert') or data.info.get('snapshot') or ''} may change the simulator state "
+            f"or act on something the stored state does not hold)")
+
+
 def cached_rollouts(gen_env: Any, policy: Any, *, key: str, dataset_type: str, name: str, n_episodes: int,
                     seed: int, info: Mapping[str, Any], regenerate: bool = False,
-                    log: Callable[[str], None] | None = _log_default) -> tuple[Trajectories, InitStates, Path]:
-    """Load the rollouts of ``policy`` from the cache, or generate and save them (atomically)."""
+                    log: Callable[[str], None] | None = _log_default,
+                    horizon: int | None = None) -> tuple[Trajectories, InitStates, Path]:
+    """Load the rollouts of ``policy`` from the cache, or generate, verify (`verify_replay`) and save
+    them (atomically). ``horizon``: episode length cap (default: the task's; part of the cache key)."""
     import mujoco
     checksum = _policy_checksum(policy)
     fields = {"generator": GENERATOR_VERSION, "task": key, "dataset_type": dataset_type, "policy": checksum,
               "n_episodes": int(n_episodes), "seed": int(seed), "mujoco": mujoco.__version__}
+    if horizon is not None:          # only when given: the default keeps the keys of existing caches
+        fields["horizon"] = int(horizon)
     hkey = cache_key(fields)
     path = datasets_cache_dir() / _safe(key) / f"{_safe(name)}-n{int(n_episodes)}-seed{int(seed)}-{hkey}.npz"
     side = init_states_path(path)
@@ -443,7 +566,8 @@ def cached_rollouts(gen_env: Any, policy: Any, *, key: str, dataset_type: str, n
     }
     full_info.update(info)
     data, init = rollout(gen_env, policy, episode_seeds(seed, n_episodes), info=full_info, log=log,
-                         label=f"{key} {name}")
+                         label=f"{key} {name}", horizon=horizon)
+    verify_replay(gen_env, data, init)
     init.save(side)          # sidecar first: a dataset file on disk always has its sidecar
     data.save(path)
     STATS["generated"] += 1
@@ -455,13 +579,15 @@ def cached_rollouts(gen_env: Any, policy: Any, *, key: str, dataset_type: str, n
 
 def perfect_provider(env: Any, *, n_episodes: int | None = None, generation_seed: int = 0, expert: Any = None,
                      expert_path: str | os.PathLike | None = None, regenerate: bool = False,
-                     verbose: bool = True, **unused: Any) -> tuple[Trajectories, InitStates]:
-    """The `perfect` dataset of ``env``'s task (full observations) and its initial states."""
+                     verbose: bool = True, horizon: int | None = None,
+                     **unused: Any) -> tuple[Trajectories, InitStates]:
+    """The `perfect` dataset of ``env``'s task (full observations) and its initial states.
+    ``horizon`` caps the episode length (default: the task's horizon)."""
     _reject_unused(unused, "perfect")
     key = _expert_key(env, expert, expert_path)
-    policy, where = load_policy(expert, expert_path, key=key)
     gen_env = generation_env(env, key)
     try:
+        policy, where = load_policy(expert, expert_path, key=key, env=gen_env)
         _check_policy(policy, key, gen_env.full_obs_spec.dim, int(gen_env.model.nu), where)
         n = DEFAULT_PERFECT_EPISODES if n_episodes is None else int(n_episodes)
         if n < 1:
@@ -469,7 +595,7 @@ def perfect_provider(env: Any, *, n_episodes: int | None = None, generation_seed
         info = {"source": SOURCE_PERFECT, "expert": where, "expert_metadata": _expert_meta(policy)}
         data, init, _ = cached_rollouts(gen_env, policy, key=key, dataset_type="perfect", name="perfect",
                                         n_episodes=n, seed=generation_seed, info=info, regenerate=regenerate,
-                                        log=_log_default if verbose else None)
+                                        log=_log_default if verbose else None, horizon=horizon)
     finally:
         gen_env.stop()
     return data, init
@@ -478,7 +604,8 @@ def perfect_provider(env: Any, *, n_episodes: int | None = None, generation_seed
 def _expert_key(env: Any, expert: Any, expert_path: Any) -> str:
     """The task key whose expert is used: the variant's own if installed, else the base body's."""
     key = task_key(env)
-    if getattr(env, "variant", None) and expert is None and expert_path is None and key not in available_experts():
+    if (getattr(env, "variant", None) and expert is None and expert_path is None
+            and key not in available_experts() and builtin_expert(key) is None):
         return f"{env.body_name}.{env.task_name}"
     return key
 
@@ -491,32 +618,40 @@ def _reject_unused(unused: Mapping[str, Any], kind: str) -> None:
 def create_preference_sets(env: Any, *, n_episodes: int | None = None, generation_seed: int = 0,
                            snapshots: Sequence[Any] | None = None, regenerate: bool = False,
                            verbose: bool = True, min_levels: int = MIN_PREFERENCE_LEVELS,
-                           return_init_states: bool = False
+                           return_init_states: bool = False, horizon: int | None = None
                            ) -> list[Trajectories] | tuple[list[Trajectories], list[InitStates]]:
     """One dataset per snapshot, ordered by mean return from worst to best (``info["level"]`` 0..K-1).
 
     ``snapshots``: expert files or expert objects (default: the task's installed
-    ``snapshots/level_<k>.pt``). Every set has ``n_episodes`` episodes (default 25) from the same
-    reset seeds, and its info holds ``level``, ``snapshot``, ``mean_return`` and the full ``levels`` table.
+    ``snapshots/level_<k>.pt``, else its built-in expert's levels). Every set has ``n_episodes``
+    episodes (default 25) from the same reset seeds, and its info holds ``level``, ``snapshot``,
+    ``mean_return`` and the full ``levels`` table. ``horizon`` caps the episode length.
     """
     if isinstance(env, str):
         from loco_il.environments.registry import make
         env = make(env)
     key = task_key(env)
-    if snapshots is None:
-        if getattr(env, "variant", None) and key not in available_snapshot_sets():
-            key = f"{env.body_name}.{env.task_name}"
-        snapshots = find_snapshots(key)
-    snapshots = list(snapshots)
-    if len(snapshots) < min_levels:
-        raise DatasetError(f"a preference dataset needs at least {min_levels} snapshots of different quality; "
-                           f"got {len(snapshots)} for {key}")
+    if (snapshots is None and getattr(env, "variant", None) and key not in available_snapshot_sets()
+            and (builtin_expert(key) is None or builtin_expert(key).levels is None)):
+        key = f"{env.body_name}.{env.task_name}"
     n = DEFAULT_PREFERENCE_EPISODES if n_episodes is None else int(n_episodes)
     if n < 1:
         raise ValueError(f"n_episodes must be >= 1, got {n}")
     gen_env = generation_env(env, key)
     sets = []
     try:
+        if snapshots is None:
+            try:
+                snapshots = find_snapshots(key)
+            except NoExpertError:
+                builtin = builtin_expert(key)
+                if builtin is None or builtin.levels is None:
+                    raise
+                snapshots = builtin.levels(gen_env)
+        snapshots = list(snapshots)
+        if len(snapshots) < min_levels:
+            raise DatasetError(f"a preference dataset needs at least {min_levels} snapshots of different quality; "
+                               f"got {len(snapshots)} for {key}")
         for k, snap in enumerate(snapshots):
             if isinstance(snap, (str, os.PathLike)):
                 policy, where = load_policy(expert_path=snap, key=key)
@@ -529,7 +664,7 @@ def create_preference_sets(env: Any, *, n_episodes: int | None = None, generatio
                     "expert_metadata": _expert_meta(policy)}
             data, init, _ = cached_rollouts(gen_env, policy, key=key, dataset_type="preference", name=name,
                                             n_episodes=n, seed=generation_seed, info=info, regenerate=regenerate,
-                                            log=_log_default if verbose else None)
+                                            log=_log_default if verbose else None, horizon=horizon)
             sets.append((data, init, where))
     finally:
         gen_env.stop()
@@ -550,7 +685,7 @@ def create_preference_sets(env: Any, *, n_episodes: int | None = None, generatio
 def preference_provider(env: Any, *, n_episodes: int | None = None, generation_seed: int = 0,
                         snapshots: Sequence[Any] | None = None, regenerate: bool = False,
                         verbose: bool = True, expert: Any = None, expert_path: Any = None,
-                        **unused: Any) -> tuple[Trajectories, InitStates]:
+                        horizon: int | None = None, **unused: Any) -> tuple[Trajectories, InitStates]:
     """All preference levels concatenated (worst first), with ``info["episode_level"]`` per episode."""
     _reject_unused(unused, "preference")
     if expert is not None or expert_path is not None:
@@ -558,7 +693,7 @@ def preference_provider(env: Any, *, n_episodes: int | None = None, generation_s
                         "(files or expert objects), not expert=/expert_path=")
     sets, inits = create_preference_sets(env, n_episodes=n_episodes, generation_seed=generation_seed,
                                          snapshots=snapshots, regenerate=regenerate, verbose=verbose,
-                                         return_init_states=True)
+                                         return_init_states=True, horizon=horizon)
     info = dict(sets[0].info)
     for k in ("level", "mean_return", "snapshot", "snapshot_index", "expert_metadata", "episode_returns",
               "expert_return_mean", "expert_return_std", "mean_episode_length", "cache_key", "cache_fields"):
@@ -638,7 +773,9 @@ def dataset_init_state_sampler(init_states: InitStates | None = None, *, env: An
 
 __all__ = [
     "GENERATOR_VERSION", "SHIPPED_DIR", "DEFAULT_PERFECT_EPISODES", "DEFAULT_PREFERENCE_EPISODES",
-    "MIN_PREFERENCE_LEVELS", "STATS", "NoExpertError", "InitStates", "datasets_cache_dir", "expert_search_path",
+    "MIN_PREFERENCE_LEVELS", "STATS", "NoExpertError", "BUILTIN_EXPERT_MODULES", "BuiltinExpert",
+    "register_builtin_expert", "builtin_expert", "builtin_experts", "describe_policy", "start_episode",
+    "verify_replay", "InitStates", "datasets_cache_dir", "expert_search_path",
     "task_key", "available_experts", "available_snapshot_sets", "find_expert", "find_snapshots", "load_policy",
     "episode_seeds", "rollout", "replay_episode", "generation_env", "cached_rollouts", "init_states_path",
     "perfect_provider", "create_preference_sets", "preference_provider", "episode_levels", "transition_levels",
