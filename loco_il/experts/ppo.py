@@ -311,15 +311,8 @@ class PPOTrainer(ExpertTrainer):
                 f"batch {cfg.num_envs * cfg.steps_per_env}, update on {self.device}")
 
     def start(self) -> None:
-        cfg = self.cfg
-        if self.envs is None:
-            self.envs = self._make_vec(self.task_id, cfg.num_envs, cfg.async_envs, autoreset=True,
-                                       env_kwargs=cfg.env_kwargs)
-        base = int(np.random.SeedSequence([cfg.seed, self.iteration]).generate_state(1)[0]) % (2 ** 31 - cfg.num_envs)
-        self._obs, _ = self.envs.reset(seed=[base + i for i in range(cfg.num_envs)])
-        self._ep_ret = np.zeros(cfg.num_envs)
-        self._ep_len = np.zeros(cfg.num_envs, dtype=np.int64)
-        self._disc_ret = np.zeros(cfg.num_envs)
+        self.reset_envs(salt=self.iteration)
+        self._disc_ret = np.zeros(self.cfg.num_envs)
 
     def iterate(self) -> dict[str, float]:
         """One rollout and one PPO update (learning rate decayed linearly over the budget)."""
@@ -353,8 +346,7 @@ class PPOTrainer(ExpertTrainer):
             next_obs, reward, terminated, truncated, infos = self.envs.step(np.clip(action, -1.0, 1.0))
             reward = np.asarray(reward, dtype=np.float64)
             ended = terminated | truncated
-            self._ep_ret += reward
-            self._ep_len += 1
+            self.track_episodes(reward, ended)
             if cfg.norm_reward:
                 self._disc_ret = self._disc_ret * cfg.gamma + reward
                 agent.ret_rms.update(self._disc_ret)
@@ -365,9 +357,6 @@ class PPOTrainer(ExpertTrainer):
                 idx = np.flatnonzero(bootstrap)
                 final = np.stack([infos["final_obs"][i] for i in idx])
                 next_val_b[t, idx] = agent.values(agent.normalize(final))
-            for i in np.flatnonzero(ended):
-                self.recent.append((float(self._ep_ret[i]), int(self._ep_len[i])))
-                self._ep_ret[i], self._ep_len[i] = 0.0, 0
             obs_b[t], act_b[t], logp_b[t], val_b[t], rew_b[t] = nobs, action, logp, value, reward
             term_b[t], end_b[t] = terminated, ended
             self._obs = next_obs

@@ -119,14 +119,7 @@ class SACTrainer(ExpertTrainer):
 
     # ------------------------------------------------------------------ acting and learning
     def start(self) -> None:
-        cfg = self.cfg
-        if self.envs is None:
-            self.envs = self._make_vec(self.task_id, cfg.num_envs, cfg.async_envs, autoreset=True,
-                                       env_kwargs=cfg.env_kwargs)
-        base = int(np.random.SeedSequence([cfg.seed, self.step]).generate_state(1)[0]) % (2 ** 31 - cfg.num_envs)
-        self._obs, _ = self.envs.reset(seed=[base + i for i in range(cfg.num_envs)])
-        self._ep_ret = np.zeros(cfg.num_envs)
-        self._ep_len = np.zeros(cfg.num_envs, dtype=np.int64)
+        self.reset_envs(salt=self.step)
 
     @torch.no_grad()
     def _actions(self) -> np.ndarray:
@@ -150,11 +143,7 @@ class SACTrainer(ExpertTrainer):
                 real_next[i] = infos["final_obs"][i]
             self.replay.add(self._obs, real_next, np.asarray(terminated, dtype=np.float32), actions,
                             np.asarray(reward, dtype=np.float32))
-            self._ep_ret += reward
-            self._ep_len += 1
-            for i in np.flatnonzero(ended):
-                self.recent.append((float(self._ep_ret[i]), int(self._ep_len[i])))
-                self._ep_ret[i], self._ep_len[i] = 0.0, 0
+            self.track_episodes(reward, ended)
             self._obs = next_obs
             self.step += n
             if len(self.replay) >= cfg.learning_starts:

@@ -163,6 +163,26 @@ class ExpertTrainer:
         """One line saying how this run is set up (printed at the start)."""
         return f"{self.cfg.num_envs} envs, update on {self.device}"
 
+    # ------------------------------------------------------------------ training envs
+    def reset_envs(self, salt: int) -> None:
+        """Create the training envs on first use; reset them with seeds drawn from (cfg.seed, salt)."""
+        cfg = self.cfg
+        if self.envs is None:
+            self.envs = self._make_vec(self.task_id, cfg.num_envs, cfg.async_envs, autoreset=True,
+                                       env_kwargs=cfg.env_kwargs)
+        base = int(np.random.SeedSequence([cfg.seed, salt]).generate_state(1)[0]) % (2 ** 31 - cfg.num_envs)
+        self._obs, _ = self.envs.reset(seed=[base + i for i in range(cfg.num_envs)])
+        self._ep_ret = np.zeros(cfg.num_envs)
+        self._ep_len = np.zeros(cfg.num_envs, dtype=np.int64)
+
+    def track_episodes(self, reward: np.ndarray, ended: np.ndarray) -> None:
+        """Add one step's rewards to the running episode returns; log the episodes that `ended`."""
+        self._ep_ret += reward
+        self._ep_len += 1
+        for i in np.flatnonzero(ended):
+            self.recent.append((float(self._ep_ret[i]), int(self._ep_len[i])))
+            self._ep_ret[i], self._ep_len[i] = 0.0, 0
+
     # ------------------------------------------------------------------ checkpoints
     def save_checkpoint(self) -> None:
         data = {"format": CHECKPOINT_FORMAT, "algo": self.cfg.algo, "task_id": self.task_id,
