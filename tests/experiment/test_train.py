@@ -206,3 +206,21 @@ def test_multirun_launchers(env_vars, tmp_path, launcher):
     for seed in (0, 1):
         ev = json.loads((run_dir(results, seed=seed) / "eval.json").read_text())
         assert ev["seed"] == seed and ev["steps"] == 10
+
+
+@pytest.mark.parametrize("algo", ["gail", "gaifo", "lsiqfo"])
+def test_state_only_learners_train_on_a_real_dataset(env_vars, tmp_path, algo):
+    """#4's `real` data (the quadruped's trot states, no actions) through train.py: the state-only learners
+    run end to end and are scored against the task's baselines (tiny budgets: a smoke test, not learning)."""
+    real = ["task=UnitreeA1.simple.real", "dataset.n_episodes=3", "+dataset.provider_kwargs={episode_steps:200}"]
+    if algo == "lsiqfo":
+        agent = ["algo=lsiq", "algo.name=lsiqfo", "n_steps=400", "algo.policy.hidden=[32,32]",
+                 "algo.params.critic_hidden=[32,32]", "algo.params.initial_replay_size=200",
+                 "algo.params.batch_size=64", "algo.params.expert_batch_size=64"]
+    else:
+        agent = [a.replace("algo=gail", f"algo={algo}") for a in TINY_GAIL] + ["n_steps=400"]
+    train(env_vars, tmp_path / "r", *real, *agent, timeout=300)
+    result = json.loads((tmp_path / "r" / "UnitreeA1.simple.real" / algo / "seed0" / "eval.json").read_text())
+    assert result["dataset_type"] == "real" and result["env_steps"] == 400
+    assert result["baseline"]["random"] is not None and result["normalized_score"] == pytest.approx(
+        (result["return_mean"] - result["baseline"]["random"]) / (result["baseline"]["expert"] - result["baseline"]["random"]))
