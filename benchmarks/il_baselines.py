@@ -213,33 +213,38 @@ def _accepted(cls) -> set[str]:
 
 
 def summarize(paths) -> None:
-    """Markdown table: per (algo, dataset) the last evaluation of each run (its last row), mean over seeds.
+    """Markdown table: per (algo, dataset) the last evaluation of each run (its last row), mean over seeds,
+    and the mean normalized score of each run's last three evaluations (single evaluations swing).
 
     A run that did not finish (no `#final` row) is listed with the steps it reached, marked `*`."""
     runs: dict[tuple, dict] = {}
+    history: dict[tuple, list[float]] = {}
     for path in paths:
         with open(path) as fh:
             for row in csv.DictReader(fh):
                 key = (row["algo"], row["dataset"], int(row["seed"]), row["run_id"].split("#")[0])
                 runs[key] = row  # rows are in order: the last one of a run wins
+                history.setdefault(key, []).append(float(row["normalized_score"]))
     groups: dict[tuple, list[dict]] = {}
-    for (algo, dataset, seed, _), row in runs.items():
+    for key, row in runs.items():
         if row["env_steps"] == "0" and row["updates"] == "0":
             continue  # a run interrupted before its first evaluation
-        groups.setdefault((algo, dataset), []).append(row)
+        row = dict(row, last3=float(np.mean(history[key][-3:])))
+        groups.setdefault(key[:2], []).append(row)
     print("| algo | dataset | seeds | env steps (BC: grad steps) | return (mean over seeds) | "
-          "normalized score per seed | wall s / run |")
-    print("|---|---|---|---|---|---|---|")
+          "normalized score per seed | mean of last 3 evals per seed | wall s / run |")
+    print("|---|---|---|---|---|---|---|---|")
     for (algo, dataset), rows in sorted(groups.items(), key=lambda kv: (ALL_ALGOS.index(kv[0][0]), kv[0][1])):
         rows.sort(key=lambda r: int(r["seed"]))
         steps = {r["updates"] if r["env_steps"] == "0" else r["env_steps"] for r in rows}
         unfinished = any(not r["run_id"].endswith("#final") for r in rows)
         ret = np.mean([float(r["return_mean"]) for r in rows])
         scores = ", ".join(f"{float(r['normalized_score']):.2f}" for r in rows)
+        last3 = ", ".join(f"{r['last3']:.2f}" for r in rows)
         wall = np.mean([float(r["wall_s"]) for r in rows])
         label = "perfect (no actions: state-only stand-in)" if dataset == "noact" else dataset
         print(f"| {algo} | {label} | {len(rows)} | {'/'.join(sorted(steps))}{'*' if unfinished else ''} | "
-              f"{ret:.0f} | {scores} | {wall:.0f} |")
+              f"{ret:.0f} | {scores} | {last3} | {wall:.0f} |")
 
 
 def main() -> None:
