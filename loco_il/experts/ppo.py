@@ -295,6 +295,7 @@ class PPOTrainer(ExpertTrainer):
 
     def build(self) -> None:
         self.agent = PPO(self.obs_dim, self.act_dim, self.cfg, self.device)
+        self.collect_time = 0.0   # seconds spent in rollouts this session (share of "train" in progress lines)
 
     def learner_state(self) -> dict[str, Any]:
         return self.agent.state_dict()
@@ -321,12 +322,12 @@ class PPOTrainer(ExpertTrainer):
             self.agent.set_lr(cfg.lr * max(0.0, 1.0 - self.step / cfg.total_steps))
         t0 = time.perf_counter()
         batch = self.collect()
-        self.collect_time = getattr(self, "collect_time", 0.0) + time.perf_counter() - t0
+        self.collect_time += time.perf_counter() - t0
         return self.agent.update(batch)
 
     def progress_suffix(self, stats: Mapping[str, float]) -> str:
         train = self._timers.get("train", 0.0) or 1.0
-        return (f"collect {100 * min(1.0, getattr(self, 'collect_time', 0.0) / train):.0f}% of train | "
+        return (f"collect {100 * min(1.0, self.collect_time / train):.0f}% of train | "
                 f"kl {stats.get('approx_kl', 0):.4f} clip {stats.get('clipfrac', 0):.3f} "
                 f"vloss {stats.get('v_loss', 0):.3f} std {stats.get('std', 0):.3f}")
 
