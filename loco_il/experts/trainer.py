@@ -29,7 +29,7 @@ import numpy as np
 import torch
 
 from loco_il.experts.policy import ExpertPolicy
-from loco_il.utils.atomic import atomic_torch_save
+from loco_il.utils.atomic import atomic_torch_save, atomic_write
 
 CHECKPOINT_FORMAT = "loco_il.experts.checkpoint/v1"
 
@@ -219,6 +219,20 @@ class ExpertTrainer:
         self.recent.extend(tuple(r) for r in data["recent"])
         torch.set_rng_state(data["rng"]["torch"])
         self.resumed_from = self.step
+        self._drop_evals_after(self.step)
+
+    def _drop_evals_after(self, step: int) -> None:
+        """Evaluations logged after the checkpoint belong to steps that will be re-run: drop them, so that
+        `evals.jsonl` holds one row per evaluated step of the history that continues."""
+        path = self.out_dir / "evals.jsonl"
+        if not path.exists():
+            return
+        rows = [line for line in path.read_text().splitlines() if line.strip()]
+        kept = [line for line in rows if json.loads(line)["step"] <= step]
+        if len(kept) < len(rows):
+            atomic_write(path, lambda f: f.write("".join(line + "\n" for line in kept).encode()))
+            self.log(f"[{self.name}] dropped {len(rows) - len(kept)} evaluation(s) logged after step {step} "
+                     "(they are re-run)")
 
     # ------------------------------------------------------------------ evaluation and expert files
     def metadata(self, ev: Mapping[str, Any] | None) -> dict[str, Any]:

@@ -2,6 +2,8 @@
 memory), squashed expert files, and learning on InvertedPendulum."""
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import torch
 
@@ -55,6 +57,21 @@ def test_resume_without_replay_refills_before_updating(tmp_path):
     assert len(tr.replay) == 0 and any("no replay memory" in m for m in messages)
     tr.train()
     assert len(tr.replay) == 150 and tr.n_updates == 201 + 51   # updates resume at 100 stored transitions
+
+
+def test_resume_drops_evaluations_logged_after_the_checkpoint(tmp_path):
+    SACTrainer(small_cfg(tmp_path, eval_interval=100), log=quiet).train()
+    log = tmp_path / "evals.jsonl"
+    steps = [json.loads(line)["step"] for line in log.read_text().splitlines()]
+    assert steps[-1] == 300
+    # a killed run evaluated at step 350 after its last checkpoint (300): that step will be re-run
+    with open(log, "a") as f:
+        f.write(json.dumps({"step": 350, "return_mean": 1.0}) + "\n")
+    tr = SACTrainer(small_cfg(tmp_path, eval_interval=100, total_steps=400), log=quiet)
+    assert [json.loads(line)["step"] for line in log.read_text().splitlines()] == steps
+    tr.train()
+    after = [json.loads(line)["step"] for line in log.read_text().splitlines()]
+    assert after[:len(steps)] == steps and after[len(steps):] == [400]
 
 
 def test_expert_file_is_the_squashed_deterministic_policy(tmp_path):
