@@ -67,7 +67,9 @@ def trainer_class(algo: str):
 @hydra.main(config_path=CONFIG_DIR, config_name="train", version_base=None)
 def train_main(cfg: DictConfig) -> None:
     plain = compose_train_config(cfg, _cli_overrides())
-    trainer_class(plain["algo"])(plain).train()
+    summary = trainer_class(plain["algo"])(plain).train()
+    if summary["stopped_by_signal"]:
+        raise SystemExit(130)    # the shell convention for "interrupted": scripts must not go on as if it finished
 
 
 @hydra.main(config_path=CONFIG_DIR, config_name="eval", version_base=None)

@@ -10,7 +10,8 @@ An algorithm (`ppo.PPOTrainer`, `sac.SACTrainer`) subclasses `ExpertTrainer` and
 The loop here (`train`) does the rest the same way for all of them: periodic deterministic
 evaluations (`evals.jsonl`, `best.pt`), snapshots at fractions of the budget (for `preference`
 datasets), atomic checkpoints every `checkpoint_minutes` and at the end, progress lines, and a final
-JSON summary line.
+JSON summary line. SIGINT (Ctrl-C) or SIGTERM ends the run at the end of the current iteration with a
+checkpoint, so that nothing since the last periodic checkpoint is lost; a second Ctrl-C stops at once.
 
 Files in `out_dir`: `checkpoint.pt`, `best.pt`, `final.pt`, `snapshots/step_XXXXXXXXX.pt`, `evals.jsonl`.
 """
@@ -19,11 +20,14 @@ from __future__ import annotations
 import collections
 import dataclasses
 import json
+import contextlib
 import math
+import signal
+import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Mapping, Sequence
+from typing import Any, Callable, Iterator, Mapping, Sequence
 
 import numpy as np
 import torch
@@ -287,6 +291,29 @@ class ExpertTrainer:
     def _session_time(self) -> float:
         return time.time() - self._t0 if hasattr(self, "_t0") else 0.0
 
+    @contextlib.contextmanager
+    def _stop_on_signals(self) -> Iterator[None]:
+        """While training, SIGINT/SIGTERM only ask the loop to stop after the current iteration (then it
+        saves a checkpoint); a second SIGINT raises KeyboardInterrupt at once. Only the main thread can
+        install handlers; elsewhere the signals keep their usual effect."""
+        if threading.current_thread() is not threading.main_thread():
+            yield
+            return
+
+        def request_stop(signum: int, _frame: Any) -> None:
+            if signum == signal.SIGINT and self._stop_signal is not None:
+                raise KeyboardInterrupt
+            self._stop_signal = signal.Signals(signum).name
+            self.log(f"[{self.cfg.algo}] {self._stop_signal}: stopping after this iteration "
+                     "(Ctrl-C again to stop at once, without a checkpoint)")
+
+        previous = {sig: signal.signal(sig, request_stop) for sig in (signal.SIGINT, signal.SIGTERM)}
+        try:
+            yield
+        finally:
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
+
     def train(self, callback: Callable[["ExpertTrainer"], None] | None = None) -> dict[str, Any]:
         """Train until `cfg.total_steps`; returns the final summary (also printed as the last JSON line).
 
@@ -303,7 +330,10 @@ class ExpertTrainer:
         self.log(f"{tag} {self.task_id}: obs {self.obs_dim}, act {self.act_dim}, {self.describe()}, "
                  f"total {cfg.total_steps} steps -> {self.out_dir}")
         final_ev: dict[str, Any] | None = None
-        try:
+        self._stop_signal: str | None = None
+        with contextlib.ExitStack() as stack:
+            stack.enter_context(self._stop_on_signals())
+            stack.callback(self.close)
             if self.step < cfg.total_steps:
                 self._maybe_snapshot()
                 self.start()
@@ -326,17 +356,26 @@ class ExpertTrainer:
                     self.save_checkpoint()
                 if callback is not None:
                     callback(self)
-            final_ev = self.last_eval if (self.last_eval_step == self.step and self.last_eval) else self.evaluate()
-            self._maybe_snapshot()
-            if stats and self._last_log_step != self.step:
-                self._progress(start_step, stats)
-            self.save_checkpoint()
-            self.make_expert(self.metadata(final_ev)).save(self.out_dir / "final.pt")
-        finally:
-            self.close()
+                if self._stop_signal is not None:
+                    break
+            if self._stop_signal is not None:
+                self.save_checkpoint()
+                self.log(f"{tag} stopped by {self._stop_signal} at step {self.step}: checkpoint saved; "
+                         "run the same command again to resume")
+                final_ev = self.last_eval
+            else:
+                final_ev = self.last_eval if (self.last_eval_step == self.step and self.last_eval) \
+                    else self.evaluate()
+                self._maybe_snapshot()
+                if stats and self._last_log_step != self.step:
+                    self._progress(start_step, stats)
+                self.save_checkpoint()
+                self.make_expert(self.metadata(final_ev)).save(self.out_dir / "final.pt")
         session = self._session_time()
-        summary = {"task_id": self.task_id, "algo": cfg.algo, "eval_return_mean": round(final_ev["return_mean"], 2),
-                   "eval_return_std": round(final_ev["return_std"], 2), "eval_episodes": final_ev["episodes"],
+        summary = {"task_id": self.task_id, "algo": cfg.algo, "stopped_by_signal": self._stop_signal,
+                   "eval_return_mean": None if final_ev is None else round(final_ev["return_mean"], 2),
+                   "eval_return_std": None if final_ev is None else round(final_ev["return_std"], 2),
+                   "eval_episodes": None if final_ev is None else final_ev["episodes"],
                    "best_eval_return": round(self.best_eval, 2), "env_steps": self.step,
                    "wall_time_s": round(self.wall_time + session, 1), "session_wall_time_s": round(session, 1),
                    "steps_per_s": round((self.step - start_step) / max(session, 1e-9), 1),

@@ -17,7 +17,9 @@ diverged) simulation.
 from __future__ import annotations
 
 import functools
+import multiprocessing
 import os
+import signal
 from typing import Any, Callable, Mapping
 
 import gymnasium as gym
@@ -46,6 +48,12 @@ class _LeanEnv(gym.Wrapper):
 
 def _make_env(task_id: str, env_kwargs: Mapping[str, Any] | None = None) -> gym.Env:
     from loco_il.environments.gym_adapter import LocoGymEnv
+    if multiprocessing.parent_process() is not None:
+        # an AsyncVectorEnv worker: Ctrl-C / SIGTERM reach the whole process group, and the trainer (parent)
+        # stops after its iteration with a checkpoint; a worker that died on the signal would break that
+        # last iteration. Workers exit when the parent closes them or its pipe goes away.
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
     return _LeanEnv(LocoGymEnv(task_id, **dict(env_kwargs or {})))
 
 

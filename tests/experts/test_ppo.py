@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -148,6 +149,26 @@ def test_kill_after_periodic_checkpoint_then_resume(tmp_path):
     for k, v in weights.items():
         assert torch.equal(resumed.agent.policy.state_dict()[k], v)
     assert resumed.train()["env_steps"] == 1536
+
+
+def test_sigterm_stops_after_the_iteration_with_a_checkpoint(tmp_path):
+    out = tmp_path / "run"
+    before = signal.getsignal(signal.SIGTERM)
+    messages: list[str] = []
+
+    def terminate_at_two(trainer):
+        if trainer.iteration == 2:
+            os.kill(os.getpid(), signal.SIGTERM)     # as `kill` or a cluster scheduler would
+
+    summary = PPOTrainer(small_cfg(out, total_steps=4096), log=messages.append).train(callback=terminate_at_two)
+    assert summary["stopped_by_signal"] == "SIGTERM" and summary["env_steps"] == 1024
+    assert torch.load(out / "checkpoint.pt", weights_only=True)["step"] == 1024
+    assert not (out / "final.pt").exists() and any("run the same command again" in m for m in messages)
+    assert signal.getsignal(signal.SIGTERM) is before          # handlers are restored after training
+    resumed = PPOTrainer(small_cfg(out, total_steps=1536), log=quiet)
+    assert resumed.step == 1024
+    done = resumed.train()
+    assert done["env_steps"] == 1536 and done["stopped_by_signal"] is None and (out / "final.pt").exists()
 
 
 # ---------------------------------------------------------------------------- learning
