@@ -199,12 +199,20 @@ def update_baseline(task_id: str, *, episodes: int = 10, seed: int = 0, random: 
                           "generation_seed": int(seed), "cache_key": data.info.get("cache_key"),
                           "return_mean": data.info.get("expert_return_mean"), **_provenance(command)}
         if data.info.get("levels"):     # preference: every level's measured return, worst first
-            sizes[dataset]["levels"] = [{k: lvl.get(k) for k in ("level", "mean_return", "std_return", "snapshot")}
+            sizes[dataset]["levels"] = [{"level": lvl.get("level"), "mean_return": lvl.get("mean_return"),
+                                         "std_return": lvl.get("std_return"),
+                                         "snapshot": _relative_if_file(lvl.get("snapshot"))}
                                         for lvl in data.info["levels"]]
         entry["datasets"] = sizes
     table[key] = entry
     save_baselines(table, path)
     return entry
+
+
+def _relative_if_file(where: Any) -> Any:
+    """A snapshot file as a repository-relative path (the table is committed; absolute paths name one
+    machine); a built-in expert's description stays as it is."""
+    return _relative(Path(where)) if isinstance(where, str) and Path(where).is_file() else where
 
 
 def _relative(p: Path) -> str:

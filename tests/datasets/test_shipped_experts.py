@@ -13,14 +13,18 @@ def private_cache(tmp_path, monkeypatch):
     monkeypatch.setenv("LOCO_IL_DATASETS", str(tmp_path / "datasets"))
 
 
-def test_hopper_perfect_from_shipped_expert_replays_exactly():
-    env = LocoEnv.make("Hopper.run.perfect", seed=0)
+@pytest.mark.parametrize("task, act_dim, floor", [
+    ("Hopper.run", 3, 3000),           # PPO expert, 3266 +- 2 measured
+    ("HalfCheetah.run", 6, 9000),      # SAC expert (tanh-squashed policy), 9221 +- 80 measured
+])
+def test_perfect_from_shipped_expert_replays_exactly(task, act_dim, floor):
+    env = LocoEnv.make(f"{task}.perfect", seed=0)
     data, init = env.create_dataset(n_episodes=2, return_init_states=True, verbose=False)
-    assert data.obs.shape[1] == env.obs_spec.dim and data.actions.shape[1] == 3
+    assert data.obs.shape[1] == env.obs_spec.dim and data.actions.shape[1] == act_dim
     assert np.abs(data.actions).max() <= 1.0
     assert data.info["dataset_type"] == "perfect" and data.info["policy_checksum"]
-    assert min(data.episode_returns()) > 3000          # the shipped expert's level (3266 +- 2 measured)
-    replay_env = LocoEnv.make("Hopper.run.perfect")
+    assert min(data.episode_returns()) > floor
+    replay_env = LocoEnv.make(f"{task}.perfect")
     for i, (start, stop) in enumerate(data.episode_bounds()):
         out = replay_episode(replay_env, init.qpos[i], init.qvel[i], data.actions[start:stop])
         np.testing.assert_allclose(out["obs"], data.obs[start:stop], atol=1e-9)
@@ -37,6 +41,6 @@ def test_hopper_preference_levels_are_ranked():
 
 
 def test_baselines_record_the_shipped_experts():
-    for task, floor in [("Hopper.run", 3000), ("Walker2d.run", 4000)]:
+    for task, floor in [("Hopper.run", 3000), ("Walker2d.run", 4000), ("HalfCheetah.run", 9000)]:
         base = get_baseline(task)
         assert base["expert"]["return_mean"] > floor > base["random"]["return_mean"]
