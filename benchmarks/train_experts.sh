@@ -22,7 +22,8 @@ DEVICE=${DEVICE:-auto}
 PYTHON=${PYTHON:-python}
 
 # SAC budgets: 1M env steps, where the SAC papers' learning curves (Haarnoja et al. 2018, arXiv:1812.05905,
-# Fig. 1) are at or above our bars; one update per env step, so about 1M GPU updates (not yet run here).
+# Fig. 1) are at or above our bars; one update per env step. Measured: HalfCheetah passed its bar (9221 +- 80)
+# at 650k steps on a 2-core CPU (~3.3 hours); Ant and Humanoid have not been run to their bars yet.
 declare -A ALGO=([HalfCheetah.run]=sac [Ant.run]=sac [Humanoid.run]=sac)
 declare -A STEPS=(
   [InvertedPendulum.balance]=100000
