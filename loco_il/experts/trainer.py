@@ -19,8 +19,8 @@ from __future__ import annotations
 
 import collections
 import dataclasses
-import json
 import contextlib
+import json
 import math
 import signal
 import threading
@@ -235,7 +235,7 @@ class ExpertTrainer:
         kept = [line for line in rows if json.loads(line)["step"] <= step]
         if len(kept) < len(rows):
             atomic_write(path, lambda f: f.write("".join(line + "\n" for line in kept).encode()))
-            self.log(f"[{self.name}] dropped {len(rows) - len(kept)} evaluation(s) logged after step {step} "
+            self.log(f"[{self.cfg.algo}] dropped {len(rows) - len(kept)} evaluation(s) logged after step {step} "
                      "(they are re-run)")
 
     # ------------------------------------------------------------------ evaluation and expert files
@@ -372,10 +372,11 @@ class ExpertTrainer:
                 self.save_checkpoint()
                 self.make_expert(self.metadata(final_ev)).save(self.out_dir / "final.pt")
         session = self._session_time()
-        summary = {"task_id": self.task_id, "algo": cfg.algo, "stopped_by_signal": self._stop_signal,
-                   "eval_return_mean": None if final_ev is None else round(final_ev["return_mean"], 2),
-                   "eval_return_std": None if final_ev is None else round(final_ev["return_std"], 2),
-                   "eval_episodes": None if final_ev is None else final_ev["episodes"],
+        final = dict.fromkeys(("eval_return_mean", "eval_return_std", "eval_episodes"))   # stopped before any eval
+        if final_ev is not None:
+            final.update(eval_return_mean=round(final_ev["return_mean"], 2),
+                         eval_return_std=round(final_ev["return_std"], 2), eval_episodes=final_ev["episodes"])
+        summary = {"task_id": self.task_id, "algo": cfg.algo, "stopped_by_signal": self._stop_signal, **final,
                    "best_eval_return": round(self.best_eval, 2), "env_steps": self.step,
                    "wall_time_s": round(self.wall_time + session, 1), "session_wall_time_s": round(session, 1),
                    "steps_per_s": round((self.step - start_step) / max(session, 1e-9), 1),
