@@ -48,13 +48,19 @@ class _LeanEnv(gym.Wrapper):
 
 def _make_env(task_id: str, env_kwargs: Mapping[str, Any] | None = None) -> gym.Env:
     from loco_il.environments.gym_adapter import LocoGymEnv
+    return _LeanEnv(LocoGymEnv(task_id, **dict(env_kwargs or {})))
+
+
+def _make_worker_env(task_id: str, env_kwargs: Mapping[str, Any] | None = None) -> gym.Env:
+    """`_make_env` inside an AsyncVectorEnv worker process. Ctrl-C / SIGTERM reach the whole process group,
+    and the trainer (parent) stops after its iteration with a checkpoint; a worker that died on the signal
+    would break that last iteration. Workers exit when the parent closes them or its pipe goes away.
+    Gymnasium's AsyncVectorEnv also calls this once in the parent (to read the spaces): there the signals
+    must keep the trainer's handlers."""
     if multiprocessing.parent_process() is not None:
-        # an AsyncVectorEnv worker: Ctrl-C / SIGTERM reach the whole process group, and the trainer (parent)
-        # stops after its iteration with a checkpoint; a worker that died on the signal would break that
-        # last iteration. Workers exit when the parent closes them or its pipe goes away.
         signal.signal(signal.SIGINT, signal.SIG_IGN)
         signal.signal(signal.SIGTERM, signal.SIG_IGN)
-    return _LeanEnv(LocoGymEnv(task_id, **dict(env_kwargs or {})))
+    return _make_env(task_id, env_kwargs)
 
 
 def resolve_async(async_mode: bool | str | None, num_envs: int) -> bool:
@@ -79,10 +85,12 @@ def make_vec_env(task_id: str, num_envs: int, async_mode: bool | str | None = "a
     """A Gymnasium vector env of `num_envs` copies of `task_id` (see the module docstring)."""
     if num_envs < 1:
         raise ValueError(f"num_envs must be >= 1, got {num_envs}")
-    fns: list[Callable[[], gym.Env]] = [functools.partial(_make_env, task_id, dict(env_kwargs or {}))
+    is_async = resolve_async(async_mode, num_envs)
+    make = _make_worker_env if is_async else _make_env
+    fns: list[Callable[[], gym.Env]] = [functools.partial(make, task_id, dict(env_kwargs or {}))
                                         for _ in range(num_envs)]
     mode = AutoresetMode.SAME_STEP if autoreset else AutoresetMode.DISABLED
-    if resolve_async(async_mode, num_envs):
+    if is_async:
         return AsyncVectorEnv(fns, shared_memory=True, copy=True, context=context, autoreset_mode=mode)
     return SyncVectorEnv(fns, copy=True, autoreset_mode=mode)
 
