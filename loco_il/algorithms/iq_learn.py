@@ -12,16 +12,26 @@ The critic maximizes the paper's objective
 
     J(Q) = E_expert[ phi(r_Q(s, a)) ] - (1 - gamma) E_rho0[ V^pi(s0) ]
 
-where the initial-state term is replaced, by telescoping, with E_rho[V(s) - gamma V(s')] for the
-state distribution rho of any policy (the paper's "value" form of the loss, used for online
-learning), and, for the chi^2 divergence, phi(x) = x - x^2 / (4 a_chi2) with a_chi2 = 0.5.
+and, for the chi^2 divergence, phi(x) = x - x^2 / (4 a_chi2) with a_chi2 = 0.5. The initial-state
+term has two forms (`value_loss`):
+  * "value": replaced, by telescoping, with E_rho[V(s) - gamma V(s')] for rho = the mixture of expert
+    and agent samples (the paper's online form; the authors' MuJoCo runs use it for HalfCheetah, Ant);
+  * "v0": (1 - gamma) E[V(s0)] with the expert batch's states standing in for initial states (the
+    authors' code does this; their MuJoCo runs use it for Hopper, Walker2d, Humanoid). Agent samples
+    then enter the critic loss only through the chi^2 penalty, which pulls their implicit reward
+    towards 0 instead of below it: on tasks that end when the robot falls, a negative reward on the
+    agent's states makes falling early pay (measured on Hopper: benchmarks/RESULTS.md).
 Variant implemented here (the paper's online setting):
-  * rho is the mixture of expert and agent samples ("value" loss on both),
   * the chi^2 penalty 1/(4 a_chi2) E[r_Q^2] is applied to expert AND agent samples (IQ-Learn's
     online practice of regularizing on both; LS-IQ analyses exactly this mixture regularizer),
   * absorbing states have V(s_A) = 0 (the (1 - absorbing) mask), as in the original method,
-  * V(s') is taken from the online critic by default (`use_target=False`: the objective is a
-    function of one Q); `use_target=True` bootstraps from the Polyak target critic instead.
+  * V(s') is taken from the Polyak target critic by default (`use_target=True`, as in the authors'
+    MuJoCo runs); `use_target=False` takes it from the online critic (the objective is then a
+    function of one Q, as written in the paper).
+  * defaults (`value_loss="v0"`, `use_target=True`) are the authors' Hopper settings; the paper's
+    "value" form stays available.
+  * one difference from the authors' code: their chi^2 term on agent samples uses Q(s, a~pi(s)),
+    ours uses the replay action's Q(s, a), the mixture regularizer that LS-IQ analyses.
 The twin critic trains each head on this objective separately (losses summed); the actor is SAC's.
 """
 from __future__ import annotations
@@ -31,19 +41,27 @@ import torch
 from .common.sac import OffPolicyILAgent
 
 
+VALUE_LOSSES = ("value", "v0")
+
+
 def iq_critic_loss(q: torch.Tensor, v: torch.Tensor, v_next: torch.Tensor, absorbing: torch.Tensor,
                    n_expert: int, gamma: float, chi2_coef: float = 0.5,
-                   regularize_policy: bool = True) -> tuple[torch.Tensor, dict]:
+                   regularize_policy: bool = True, value_loss: str = "value") -> tuple[torch.Tensor, dict]:
     """IQ-Learn critic loss -J(Q) (module docstring), summed over any leading (head) dimensions.
 
     q, v, v_next: (..., N) with the first `n_expert` entries expert samples, the rest agent samples;
     q = Q(s, a), v = V(s), v_next = V(s'); absorbing: (N,) 1 where s' is absorbing.
-    chi2_coef = 1 / (4 a_chi2).
+    chi2_coef = 1 / (4 a_chi2); value_loss: "value" or "v0" (module docstring).
     """
     y_next = gamma * (1.0 - absorbing) * v_next
     r = q - y_next                                       # implicit reward r_Q
     expert_term = -r[..., :n_expert].mean(-1)            # -E_expert[r_Q]
-    value_term = (v - y_next).mean(-1)                   # E_mix[V(s) - gamma V(s')]
+    if value_loss == "value":
+        value_term = (v - y_next).mean(-1)               # E_mix[V(s) - gamma V(s')]
+    elif value_loss == "v0":
+        value_term = (1.0 - gamma) * v[..., :n_expert].mean(-1)  # (1 - gamma) E[V(s0)], s0 ~ expert states
+    else:
+        raise ValueError(f"value_loss must be one of {VALUE_LOSSES}, got {value_loss!r}")
     r_reg = r if regularize_policy else r[..., :n_expert]
     chi2_term = chi2_coef * r_reg.pow(2).mean(-1)        # 1/(4a) E[r_Q^2]
     loss = (expert_term + value_term + chi2_term).sum()
@@ -57,14 +75,18 @@ class IQLearn(OffPolicyILAgent):
     display_name = "IQ-Learn"
     supported_datasets = frozenset({"perfect", "preference"})
 
-    def __init__(self, mdp_info, policy_module, *, chi2_alpha: float = 0.5, use_target: bool = False,
-                 regularize_policy: bool = True, **kwargs):
+    def __init__(self, mdp_info, policy_module, *, chi2_alpha: float = 0.5, use_target: bool = True,
+                 regularize_policy: bool = True, value_loss: str = "v0", **kwargs):
+        if value_loss not in VALUE_LOSSES:
+            raise ValueError(f"IQLearn: value_loss must be one of {VALUE_LOSSES}, got {value_loss!r}")
         super().__init__(mdp_info, policy_module, **kwargs)
+        self.value_loss = value_loss
         self.chi2_coef = 1.0 / (4.0 * chi2_alpha)
         self.use_target = use_target
         self.regularize_policy = regularize_policy
 
     def critic_loss(self, expert, policy):
-        c = self.critic_values(expert, policy, need_v=True, online_next=not self.use_target)
+        c = self.critic_values(expert, policy, need_v=True, online_next=not self.use_target,
+                               v_expert_only=self.value_loss == "v0")  # "v0" reads V on expert states only
         return iq_critic_loss(c["q"], c["v"], c["v_next"], c["absorbing"], c["n_expert"], self.gamma,
-                              self.chi2_coef, self.regularize_policy)
+                              self.chi2_coef, self.regularize_policy, self.value_loss)

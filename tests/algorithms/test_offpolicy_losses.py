@@ -37,6 +37,11 @@ def test_iq_loss_hand_computed():
     # chi^2 on expert samples only: 0.5 * 1.21
     loss_e, _ = iq_critic_loss(q, v, v_next, absorbing, 1, 0.9, 0.5, regularize_policy=False)
     assert loss_e.item() == pytest.approx(-1.1 + 0.55 + 0.605, abs=1e-6)
+    # "v0" value loss: (1 - gamma) V(s0) on the expert state only = 0.1 * 1.5; agent samples only in the chi^2 term
+    loss_v0, _ = iq_critic_loss(q, v, v_next, absorbing, 1, 0.9, 0.5, value_loss="v0")
+    assert loss_v0.item() == pytest.approx(-1.1 + 0.15 + 0.5525, abs=1e-6)
+    with pytest.raises(ValueError, match="value_loss"):
+        iq_critic_loss(q, v, v_next, absorbing, 1, 0.9, 0.5, value_loss="v1")
     # two identical heads: the head losses are summed
     loss2, _ = iq_critic_loss(torch.stack([q, q]), torch.stack([v, v]), torch.stack([v_next, v_next]),
                               absorbing, 1, 0.9, 0.5)
@@ -197,6 +202,30 @@ def test_sqil_agent_relabels_expert_1_agent_0():
     y = torch.cat([torch.ones(5), torch.zeros(7)]) + 0.99 * (torch.minimum(t1, t2) - agent.sac.alpha * logp)
     q1, q2 = agent.sac.critic(torch.cat([expert["obs"], policy["obs"]]), torch.cat([expert["actions"], policy["actions"]]))
     assert loss.item() == pytest.approx(((q1 - y) ** 2).mean().item() + ((q2 - y) ** 2).mean().item(), rel=1e-5)
+
+
+def test_iqlearn_agent_v0_loss_reads_v_on_expert_states_and_target_next_value():
+    agent = _agent(IQLearn)  # defaults: value_loss="v0", use_target=True
+    agent.replay.add(np.zeros((4, OBS_DIM)), np.ones((4, OBS_DIM)), np.zeros(4), np.zeros((4, ACT_DIM)))
+    expert = agent.expert_buffer.sample(5, agent.rng)
+    policy = agent.replay.sample(7, agent.rng)
+    torch.manual_seed(3)
+    loss, _ = agent.critic_loss(expert, policy)
+    # by hand, same policy noise: one draw for [expert states; all next states]
+    torch.manual_seed(3)
+    obs = torch.cat([expert["obs"], policy["obs"]])
+    nxt = torch.cat([expert["next_obs"], policy["next_obs"]])
+    a, logp = agent.policy_module.sample(torch.cat([expert["obs"], nxt]))
+    alpha = agent.sac.alpha
+    t1, t2 = agent.sac.critic_target(nxt, a[5:])
+    v_next = torch.minimum(t1, t2) - alpha * logp[5:]
+    q = agent.sac.critic(obs, torch.cat([expert["actions"], policy["actions"]]))
+    v = agent.sac.critic(expert["obs"], a[:5])
+    expected = sum(iq_critic_loss(qi, vi - alpha * logp[:5], v_next, torch.zeros(12), 5, 0.99, 0.5,
+                                  value_loss="v0")[0] for qi, vi in zip(q, v))
+    assert loss.item() == pytest.approx(expected.item(), rel=1e-5)
+    with pytest.raises(ValueError, match="value_loss"):
+        _agent(IQLearn, value_loss="value0")
 
 
 def test_replay_ring_buffer_keeps_newest():

@@ -214,12 +214,13 @@ class OffPolicyILAgent(ILAgent):
         raise NotImplementedError
 
     def critic_values(self, expert: dict, policy: dict, need_v: bool = True,
-                      online_next: bool = False) -> dict[str, torch.Tensor]:
+                      online_next: bool = False, v_expert_only: bool = False) -> dict[str, torch.Tensor]:
         """Everything the implicit-reward losses need, with one policy and one critic forward.
 
         Returns, for the concatenation [expert; policy] of length N (first `n_expert` are expert):
           q      (2, N)  Q_i(s, a) of both heads (with grad)
           v      (2, N)  V_i(s) = Q_i(s, a~) - alpha log pi(a~|s), a~ ~ pi(.|s)  (grad into Q only); if need_v
+                         ((2, n_expert), the expert states only, if v_expert_only: saves critic rows)
           v_next (2, N)  V(s'): from the online heads (with grad) if online_next, else
                          min_i Q_target_i(s', a') - alpha log pi(a'|s') (no grad), repeated for both heads
           absorbing (N,)
@@ -230,19 +231,20 @@ class OffPolicyILAgent(ILAgent):
         next_obs = torch.cat([expert["next_obs"], policy["next_obs"]])
         n = len(obs)
         alpha = self.sac.alpha
+        n_v = n_e if v_expert_only else n
         with torch.no_grad():  # sampled actions are constants for the critic loss
-            pol_obs = torch.cat([obs, next_obs]) if (need_v or online_next) else next_obs
+            pol_obs = torch.cat([obs[:n_v], next_obs]) if need_v else next_obs
             a_pi, logp = self.policy_module.sample(pol_obs)
         crit_obs, crit_act = [obs], [act]
         if need_v:
-            crit_obs.append(obs); crit_act.append(a_pi[:n])
+            crit_obs.append(obs[:n_v]); crit_act.append(a_pi[:n_v])
         if online_next:
             crit_obs.append(next_obs); crit_act.append(a_pi[-n:])
         q1, q2 = self.sac.critic(torch.cat(crit_obs), torch.cat(crit_act))
         qs = torch.stack([q1, q2])  # (2, k * N)
         out = {"q": qs[:, :n], "absorbing": torch.cat([expert["absorbing"], policy["absorbing"]]), "n_expert": n_e}
         if need_v:
-            out["v"] = qs[:, n:2 * n] - alpha * logp[:n]
+            out["v"] = qs[:, n:n + n_v] - alpha * logp[:n_v]
         if online_next:
             out["v_next"] = qs[:, -n:] - alpha * logp[-n:]
         else:
