@@ -32,6 +32,11 @@ form (`value_term=False`) reached the expert return too but then oscillated, thi
 UNCERTAIN (reported): the absorbing target per data source, the value term, and the IDM's
 training details; r_max/Q_max follow the derivation above with the brief's c = 0.5.
 
+`objective="fixed_expert"` is instead the objective of the authors' released MuJoCo runs (their code,
+github.com/robfiras/ls-iq, examples/01_LSIQ: the "sqil_like" loss with loss_mode_exp="fix" and
+plcy_loss_mode="value"): see `lsiq_fixed_expert_loss`. Their runs also fix the temperature at 1e-3,
+use one critic and clamp log std at -5, and ran without the absorbing-state treatment (V(s_A) = 0).
+
 LSIQ-fO (the paper's learning-from-observations variant): an inverse dynamics model
 IDM(s, s') -> a is fit by regression on the agent's own replay transitions and labels the
 expert's state pairs with actions; everything else is LS-IQ.
@@ -86,19 +91,50 @@ def lsiq_critic_loss(q: torch.Tensor, v_next: torch.Tensor, absorbing: torch.Ten
     return loss.sum(), info
 
 
+def lsiq_fixed_expert_loss(q: torch.Tensor, v: torch.Tensor, v_next: torch.Tensor, absorbing: torch.Tensor,
+                           n_expert: int, gamma: float, reg_coef: float = 0.5, mix: float = 0.5,
+                           treat_absorbing: bool = True) -> tuple[torch.Tensor, dict]:
+    """The critic objective of the LS-IQ authors' released MuJoCo runs (`objective="fixed_expert"`):
+
+        E_E[(Q(s, a) - Q_max)^2]  +  E_mix[(V(s) - (r_min + gamma V(s')))^2]
+
+    expert pairs are regressed to the fixed value Q_max (no bootstrap), and the current policy's soft
+    value V(s) = Q(s, a~pi) - alpha log pi on all states (expert and agent) to the agent reward r_min plus the
+    clipped bootstrap (with `treat_absorbing`, an absorbing s' gives r_min / (1 - gamma)). Replayed agent
+    actions do not enter. q, v, v_next: (..., N), first `n_expert` entries expert; summed over heads.
+    """
+    _, r_min, q_max, _ = lsiq_bounds(reg_coef, mix, gamma)
+    y = lsiq_targets(v_next, absorbing, 0, gamma, reg_coef, mix, treat_absorbing)  # agent-side targets for all rows
+    expert_term = (q[..., :n_expert] - q_max).pow(2).mean(-1)
+    value_term = (v - (r_min + y)).pow(2).mean(-1)
+    r = q - lsiq_targets(v_next, absorbing, n_expert, gamma, reg_coef, mix, treat_absorbing)
+    info = {"reward_expert": r[..., :n_expert].mean().detach(), "reward_policy": r[..., n_expert:].mean().detach()}
+    return (expert_term + value_term).sum(), info
+
+
+OBJECTIVES = ("mixture", "fixed_expert")
+
+
 class LSIQ(OffPolicyILAgent):
     name = "lsiq"
     display_name = "LS-IQ"
     supported_datasets = frozenset({"perfect", "preference"})
 
     def __init__(self, mdp_info, policy_module, *, reg_coef: float = 0.5, mix: float = 0.5,
-                 treat_absorbing: bool = True, value_term: bool = True, **kwargs):
+                 treat_absorbing: bool = True, value_term: bool = True, objective: str = "mixture", **kwargs):
+        if objective not in OBJECTIVES:
+            raise ValueError(f"LSIQ: objective must be one of {OBJECTIVES}, got {objective!r}")
         kwargs.setdefault("actor_lr", 3e-5)  # LS-IQ's actor learning rate (see experiment_configs/algo/lsiq.yaml)
         super().__init__(mdp_info, policy_module, **kwargs)
         self.reg_coef, self.mix = reg_coef, mix
         self.treat_absorbing, self.value_term = treat_absorbing, value_term
+        self.objective = objective
 
     def critic_loss(self, expert, policy):
+        if self.objective == "fixed_expert":
+            c = self.critic_values(expert, policy, need_v=True, online_next=False)
+            return lsiq_fixed_expert_loss(c["q"], c["v"], c["v_next"], c["absorbing"], c["n_expert"], self.gamma,
+                                          self.reg_coef, self.mix, self.treat_absorbing)
         c = self.critic_values(expert, policy, need_v=self.value_term, online_next=False)
         return lsiq_critic_loss(c["q"], c["v_next"], c["absorbing"], c["n_expert"], self.gamma,
                                 self.reg_coef, self.mix, self.treat_absorbing, c.get("v"))

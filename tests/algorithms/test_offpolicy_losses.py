@@ -15,7 +15,8 @@ from loco_il.algorithms.common.networks import GaussianPolicy
 from loco_il.algorithms.common.replay import TransitionBuffer
 from loco_il.algorithms.common.sac import actor_loss, polyak_update, temperature_loss
 from loco_il.algorithms.iq_learn import IQLearn, iq_critic_loss
-from loco_il.algorithms.lsiq import LSIQ, LSIQfO, lsiq_bounds, lsiq_critic_loss, lsiq_targets
+from loco_il.algorithms.lsiq import (LSIQ, LSIQfO, lsiq_bounds, lsiq_critic_loss, lsiq_fixed_expert_loss,
+                                     lsiq_targets)
 from loco_il.algorithms.sqil import SQIL, sqil_critic_loss, sqil_rewards
 
 torch.set_num_threads(1)
@@ -91,6 +92,22 @@ def test_lsiq_loss_hand_computed():
     # optional value term E_pi[V(s) - Q(s, a)] = mean(-17 + 19, -14 + 15) = 1.5
     loss_v, _ = lsiq_critic_loss(q, v_next, absorbing, 2, 0.9, v=T(0.0, 0.0, -17.0, -14.0))
     assert loss_v.item() == pytest.approx(3.5 + 1.5, abs=1e-5)
+
+
+def test_lsiq_fixed_expert_loss_hand_computed():
+    # gamma 0.9, c = 0.5, mix 0.5 -> r_min = -2, Q_max = 20 = -Q_min; index 0 expert, index 1 agent
+    q, v, v_next = T(18.0, -1.0), T(5.0, -3.0), T(10.0, 30.0)
+    # expert: (18 - 20)^2 = 4; V regression on both states to -2 + 0.9 clip(V', -20, 20) = [7, 16]: mean(4, 361)
+    loss, _ = lsiq_fixed_expert_loss(q, v, v_next, T(0.0, 0.0), 1, 0.9)
+    assert loss.item() == pytest.approx(4 + 182.5)
+    # absorbing agent transition: target r_min / (1 - gamma) = -20 -> (-3 + 20)^2 = 289
+    loss_abs, _ = lsiq_fixed_expert_loss(q, v, v_next, T(0.0, 1.0), 1, 0.9)
+    assert loss_abs.item() == pytest.approx(4 + (4 + 289) / 2)
+    # without the treatment (the released runs): V(s_A) = 0 -> target -2 -> (-3 + 2)^2 = 1
+    loss_0, _ = lsiq_fixed_expert_loss(q, v, v_next, T(0.0, 1.0), 1, 0.9, treat_absorbing=False)
+    assert loss_0.item() == pytest.approx(4 + (4 + 1) / 2)
+    with pytest.raises(ValueError, match="objective"):
+        _agent(LSIQ, objective="sqil_like")
 
 
 def test_lsiq_loss_minimum_is_at_reward_bounds():
