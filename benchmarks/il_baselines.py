@@ -1,4 +1,4 @@
-"""Imitation-learning baselines on Hopper.run.perfect: every algorithm, a fixed env-step budget, several seeds.
+"""Imitation-learning baselines (default task Hopper.run): every algorithm, a fixed env-step budget, several seeds.
 
 For each (algorithm, dataset, seed) the agent is built from `experiment_configs/algo/<algo>.yaml`
 (`--set key=value` overrides constructor parameters, e.g. for small budgets), given the expert data
@@ -8,14 +8,16 @@ episodes of a separate, seeded env, and one CSV row is appended to `--out` at on
 
     algo,dataset,seed,env_steps,updates,wall_s,return_mean,return_std,normalized_score,norm_ref,run_id
 
-Datasets:
-  perfect   the shipped Hopper.run expert's 100 episodes (`LocoEnv.make("Hopper.run.perfect").create_dataset()`).
+Datasets (of `--task`, an `<Env>.<task>` id, default Hopper.run):
+  perfect   the shipped expert's 100 episodes (`LocoEnv.make("<task>.perfect").create_dataset()`).
   noact     THE SAME episodes with the actions removed (`actions=None`): a stand-in for a state-only
-            (`real`) setting, since Hopper has no motion-capture data. Only for the state-only learners
+            setting on bodies without motion data (Hopper). Only for the state-only learners
             (gail -> D(s), gaifo -> D(s, s'), lsiqfo -> inverse dynamics model).
+  real      the task's `real` dataset (`<task>.real`: retargeted or generated motion, no actions,
+            with embodiment mismatch), e.g. `--task UnitreeA1.simple`; only for the state-only learners.
 
 normalized_score = (return - random) / (expert - random): `loco_il.datasets.baselines.normalized_score`
-when baselines.yaml has both entries for Hopper.run; otherwise random = the measured random return of
+when baselines.yaml has both entries for the task; otherwise random = the measured random return of
 baselines.yaml (or measured here if absent) and expert = the dataset's recorded mean return
 (`info["expert_return_mean"]`). The reference used is printed and written in the `norm_ref` column.
 
@@ -25,6 +27,7 @@ the interrupted attempt can be told apart). Note: every `Core.learn` call betwee
 a new episode, so an episode is cut at each evaluation point.
 
     python benchmarks/il_baselines.py --algos gail vail gaifo --seeds 0 1 --steps 50000 --eval-every 10240
+    python benchmarks/il_baselines.py --task UnitreeA1.simple --algos gaifo --datasets real --seeds 0 --steps 300000
 """
 from __future__ import annotations
 
@@ -42,7 +45,7 @@ import torch
 import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
-TASK = "Hopper.run.perfect"
+DEFAULT_TASK = "Hopper.run"
 ALL_ALGOS = ["bc", "gail", "vail", "gaifo", "iqlearn", "lsiq", "lsiqfo", "sqil"]
 STATE_ONLY = {"gail", "gaifo", "lsiqfo"}
 FIELDS = ["algo", "dataset", "seed", "env_steps", "updates", "wall_s", "return_mean", "return_std",
@@ -60,9 +63,9 @@ def parse_value(text: str):
     return yaml.safe_load(text)
 
 
-def expert_data(dataset: str):
+def expert_data(task: str, dataset: str):
     from loco_il import LocoEnv
-    data = LocoEnv.make(TASK).create_dataset(verbose=False)
+    data = LocoEnv.make(f"{task}.{'real' if dataset == 'real' else 'perfect'}").create_dataset(verbose=False)
     if dataset == "noact":
         fields = {k: getattr(data, k) for k in ("obs", "next_obs", "rewards", "absorbing", "last")}
         return SimpleNamespace(actions=None, info=dict(data.info), **fields), data
@@ -90,9 +93,9 @@ def evaluate(agent, env, n_episodes: int, seed: int) -> np.ndarray:
     return np.asarray(returns)
 
 
-def random_return(n_episodes: int = 10, seed: int = 0) -> float:
+def random_return(task: str, n_episodes: int = 10, seed: int = 0) -> float:
     from loco_il import LocoEnv
-    env = LocoEnv.make(TASK)
+    env = LocoEnv.make(task)
     rng = np.random.default_rng(seed)
     rets = []
     for i in range(n_episodes):
@@ -108,22 +111,23 @@ def random_return(n_episodes: int = 10, seed: int = 0) -> float:
     return float(np.mean(rets))
 
 
-def make_normalizer(data):
+def make_normalizer(task: str, data):
     """(function return -> normalized score, description of the reference)."""
     from loco_il.datasets import baselines as bl
+    task = f"{task}.perfect"
     try:
-        bl.normalized_score(TASK, 0.0)
-        entry = bl.get_baseline(TASK)
+        bl.normalized_score(task, 0.0)
+        entry = bl.get_baseline(task)
         desc = (f"baselines.yaml (random {entry['random']['return_mean']:.1f}, "
                 f"expert {entry['expert']['return_mean']:.1f})")
-        return (lambda r: float(bl.normalized_score(TASK, r))), desc
+        return (lambda r: float(bl.normalized_score(task, r))), desc
     except (KeyError, TypeError):  # BaselineMissingError is a KeyError
         pass
     try:
-        rnd = float(bl.get_baseline(TASK)["random"]["return_mean"])
+        rnd = float(bl.get_baseline(task)["random"]["return_mean"])
         rnd_src = "baselines.yaml random"
     except (KeyError, TypeError):
-        rnd = random_return()
+        rnd = random_return(task)
         rnd_src = "random measured here (10 ep, seed 0)"
     exp = float(data.info.get("expert_return_mean") or np.mean(data.info["episode_returns"]))
     desc = f"{rnd_src} {rnd:.1f}; expert = dataset's recorded mean return {exp:.1f}"
@@ -156,11 +160,12 @@ def run_one(algo: str, dataset: str, seed: int, args, writer, fh, norm, norm_des
             continue
         if key in _accepted(get_algorithm(algo)):
             cfg["params"][key] = parse_value(value)
-    if algo == "gail" and dataset == "noact":
+    if algo == "gail" and dataset in ("noact", "real"):
         cfg["params"]["use_actions"] = None  # -> D(s)
-    expert, _ = expert_data(dataset)
-    env = LocoEnv.make(TASK, seed=seed)
-    eval_env = LocoEnv.make(TASK)
+    expert, _ = expert_data(args.task, dataset)
+    env_id = f"{args.task}.{'real' if dataset == 'real' else 'perfect'}"
+    env = LocoEnv.make(env_id, seed=seed)
+    eval_env = LocoEnv.make(env_id)
     agent = build_agent(algo, env.info, cfg, seed=seed)
     agent.set_expert(expert)
     run_id = f"{time.strftime('%Y%m%dT%H%M%S')}-{os.getpid()}"
@@ -249,9 +254,10 @@ def summarize(paths) -> None:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--task", default=DEFAULT_TASK, help="<Env>.<task> (its perfect/real datasets are used)")
     parser.add_argument("--algos", nargs="+", default=ALL_ALGOS)
-    parser.add_argument("--datasets", nargs="+", default=["perfect", "noact"],
-                        help="perfect and/or noact (noact only runs the state-only learners gail, gaifo, lsiqfo)")
+    parser.add_argument("--datasets", nargs="+", default=["perfect", "noact"], choices=["perfect", "noact", "real"],
+                        help="noact and real only run the state-only learners gail, gaifo, lsiqfo")
     parser.add_argument("--seeds", nargs="+", type=int, default=[0, 1])
     parser.add_argument("--steps", type=int, default=50_000, help="env steps per run (BC: gradient steps)")
     parser.add_argument("--eval-every", type=int, default=10_000)
@@ -259,7 +265,8 @@ def main() -> None:
     parser.add_argument("--set", nargs="*", default=[], metavar="[ALGOS:]KEY=VALUE",
                         help="constructor overrides, e.g. initial_replay_size=1000 or iqlearn,lsiq:actor_lr=1e-4; "
                              "a key is applied only to agents that accept it")
-    parser.add_argument("--out", default=str(ROOT / "benchmarks" / "il_results" / "hopper_baselines.csv"))
+    parser.add_argument("--out", default=None,
+                        help="CSV to append to (default benchmarks/il_results/<task>_baselines.csv)")
     parser.add_argument("--threads", type=int, default=1)
     parser.add_argument("--summarize", nargs="+", metavar="CSV",
                         help="only print a Markdown table of the last evaluation of every run in these CSVs")
@@ -272,11 +279,12 @@ def main() -> None:
     if unknown:
         sys.exit(f"unknown algos {sorted(unknown)}; known: {ALL_ALGOS}")
 
-    out = Path(args.out)
+    out = Path(args.out or ROOT / "benchmarks" / "il_results" / f"{args.task.lower().replace('.', '_')}_baselines.csv")
     out.parent.mkdir(parents=True, exist_ok=True)
     done = done_runs(out)
-    _, data = expert_data("perfect")
-    norm, norm_desc = make_normalizer(data)
+    _, data = expert_data(args.task, "perfect")
+    norm, norm_desc = make_normalizer(args.task, data)
+    print(f"# task {args.task}", flush=True)
     print(f"# normalized score reference: {norm_desc}", flush=True)
     print(f"# overrides: {args.set or 'none'}", flush=True)
     new = not out.is_file() or out.stat().st_size == 0
@@ -287,7 +295,7 @@ def main() -> None:
             print(",".join(FIELDS[:-2]), flush=True)
         for algo in args.algos:
             for dataset in args.datasets:
-                if dataset == "noact" and algo not in STATE_ONLY:
+                if dataset in ("noact", "real") and algo not in STATE_ONLY:
                     continue
                 for seed in args.seeds:
                     if (algo, dataset, seed) in done:

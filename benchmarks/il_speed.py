@@ -128,9 +128,24 @@ def make_offpolicy_agent(name: str, n_replay: int, seed: int = 0):
     return agent
 
 
-def bench_offpolicy(names, updates: int, reps: int) -> dict[str, float]:
+def compiled_bare_sac(n_replay: int) -> BareSAC:
+    """The bare SAC update with `torch.compile`d critic forward and policy sample (backward through AOTAutograd):
+    whether compiling pays for these small networks on this machine."""
+    bare = BareSAC(n_replay, 512)
+    bare.q.forward = torch.compile(bare.q.forward)
+    bare.pi.sample = torch.compile(bare.pi.sample)
+    t0 = time.perf_counter()
+    for _ in range(3):
+        bare.update()
+    print(f"# torch.compile warm-up (compilation): {time.perf_counter() - t0:.1f} s", flush=True)
+    return bare
+
+
+def bench_offpolicy(names, updates: int, reps: int, with_compiled: bool = False) -> dict[str, float]:
     n_replay = 20_000
     runners = {"bare SAC": BareSAC(n_replay, 512).update}
+    if with_compiled:
+        runners["compiled"] = compiled_bare_sac(n_replay).update
     for name in names:
         runners[name] = make_offpolicy_agent(name, n_replay).update
     for fn in runners.values():  # warm-up
@@ -234,6 +249,8 @@ def main() -> None:
     parser.add_argument("--onpolicy-fits", type=int, default=6, help="fits per timed block (6 = 2 disc steps)")
     parser.add_argument("--onpolicy-reps", type=int, default=3)
     parser.add_argument("--task", default="Hopper.run.perfect", help="on-policy part: the environment")
+    parser.add_argument("--compiled-bare", action="store_true",
+                        help="off-policy part: also time the bare SAC update with torch.compile'd networks (row 'compiled')")
     parser.add_argument("--random-expert", action="store_true",
                         help="on-policy part: random expert data of the task's shape instead of its dataset")
     args = parser.parse_args()
@@ -241,7 +258,7 @@ def main() -> None:
     torch.manual_seed(0)
     print(f"torch {torch.__version__}, threads {torch.get_num_threads()}")
     if args.offpolicy:
-        bench_offpolicy(args.offpolicy, args.updates, args.reps)
+        bench_offpolicy(args.offpolicy, args.updates, args.reps, args.compiled_bare)
     if args.onpolicy:
         from loco_il import LocoEnv
         if args.random_expert:
