@@ -203,16 +203,23 @@ def test_expert_without_actions_rejected_unless_state_only():
     _agent(LSIQfO).set_expert(_expert(with_actions=False))
 
 
-def test_sqil_agent_relabels_expert_1_agent_0():
-    agent = _agent(SQIL)
-    agent.replay.add(*(np.asarray(x) for x in (np.zeros((4, OBS_DIM)), np.zeros((4, OBS_DIM)))), np.zeros(4),
+def _critic_loss_on_small_batches(agent, next_obs_value: float):
+    """The agent's critic loss on 5 expert + 7 replay samples (4 replay transitions); the torch seed is
+    reset afterwards, so that a hand computation draws the same policy noise."""
+    agent.replay.add(np.zeros((4, OBS_DIM)), np.full((4, OBS_DIM), next_obs_value), np.zeros(4),
                      np.zeros((4, ACT_DIM)))
     expert = agent.expert_buffer.sample(5, agent.rng)
     policy = agent.replay.sample(7, agent.rng)
     torch.manual_seed(3)
     loss, _ = agent.critic_loss(expert, policy)
-    # recompute by hand with the same policy noise: rewards 1 for the 5 expert, 0 for the 7 agent samples
     torch.manual_seed(3)
+    return expert, policy, loss
+
+
+def test_sqil_agent_relabels_expert_1_agent_0():
+    agent = _agent(SQIL)
+    expert, policy, loss = _critic_loss_on_small_batches(agent, 0.0)
+    # recompute by hand with the same policy noise: rewards 1 for the 5 expert, 0 for the 7 agent samples
     nxt = torch.cat([expert["next_obs"], policy["next_obs"]])
     a, logp = agent.policy_module.sample(nxt)
     t1, t2 = agent.sac.critic_target(nxt, a)
@@ -223,13 +230,8 @@ def test_sqil_agent_relabels_expert_1_agent_0():
 
 def test_iqlearn_agent_v0_loss_reads_v_on_expert_states_and_target_next_value():
     agent = _agent(IQLearn)  # defaults: value_loss="v0", use_target=True
-    agent.replay.add(np.zeros((4, OBS_DIM)), np.ones((4, OBS_DIM)), np.zeros(4), np.zeros((4, ACT_DIM)))
-    expert = agent.expert_buffer.sample(5, agent.rng)
-    policy = agent.replay.sample(7, agent.rng)
-    torch.manual_seed(3)
-    loss, _ = agent.critic_loss(expert, policy)
+    expert, policy, loss = _critic_loss_on_small_batches(agent, 1.0)
     # by hand, same policy noise: one draw for [expert states; all next states]
-    torch.manual_seed(3)
     obs = torch.cat([expert["obs"], policy["obs"]])
     nxt = torch.cat([expert["next_obs"], policy["next_obs"]])
     a, logp = agent.policy_module.sample(torch.cat([expert["obs"], nxt]))
