@@ -3,11 +3,14 @@
     python -m loco_il.experts train task=Hopper.run total_steps=2000000 num_envs=16 seed=0 out_dir=runs/hopper
     python -m loco_il.experts train task=HalfCheetah.run algo=sac total_steps=1000000 device=cuda
     python -m loco_il.experts eval path=runs/hopper/best.pt episodes=10
+    python -m loco_il.experts slim path=runs/ant/checkpoint.pt out=ant_checkpoint_noreplay.pt
 
 `train` is a Hydra app (configs/train.yaml with configs/algo/<algo>.yaml, then the `<algo>:` section of
 configs/body/<Body>.yaml when it exists); re-running the same command with the same out_dir resumes from
 out_dir/checkpoint.pt. Its last output line is a JSON
 summary (final evaluation return mean and std, env steps, wall time). `eval` prints one JSON line.
+`slim` copies a checkpoint without its replay memory (a resumed run refills it); copy the result to
+<out_dir>/checkpoint.pt to go on from it.
 """
 from __future__ import annotations
 
@@ -97,8 +100,19 @@ def eval_main(cfg: DictConfig) -> None:
                       "checksum": expert.checksum()}), flush=True)
 
 
+def slim_main(argv: list[str]) -> None:
+    from loco_il.experts.trainer import slim_checkpoint
+    args = dict(a.split("=", 1) for a in argv if "=" in a)
+    if set(args) != {"path", "out"} or len(args) != len(argv):
+        raise SystemExit("usage: python -m loco_il.experts slim path=<checkpoint.pt> out=<new file>")
+    print(json.dumps({"path": args["path"], "out": args["out"], **slim_checkpoint(args["path"], args["out"])}), flush=True)
+
+
 def main(argv: list[str] | None = None) -> None:
     argv = list(sys.argv[1:] if argv is None else argv)
+    if argv and argv[0] == "slim":
+        slim_main(argv[1:])
+        return
     if not argv or argv[0] not in ("train", "eval"):
         print(USAGE, file=sys.stderr)
         raise SystemExit(0 if argv and argv[0] in ("-h", "--help") else 2)

@@ -99,6 +99,21 @@ def resolve_device(device: str) -> torch.device:
     return torch.device(device)
 
 
+def slim_checkpoint(src: str | Path, dst: str | Path) -> dict[str, Any]:
+    """Copy an expert-training checkpoint without its replay memory (SAC's is ~250 bytes per transition).
+
+    The copy resumes like any checkpoint saved with `checkpoint_replay=false`: the run refills the replay
+    memory with its current policy (`learning_starts` steps) before updates go on. Use it to move a run to
+    another machine or to keep a long run's state small enough to store. Returns the step and both sizes."""
+    data = torch.load(src, map_location="cpu", weights_only=True)
+    if data.get("format") != CHECKPOINT_FORMAT:
+        raise ValueError(f"{src} is not an expert-training checkpoint of this version")
+    if isinstance(data.get("agent"), dict) and data["agent"].get("replay") is not None:
+        data["agent"]["replay"] = None
+    atomic_torch_save(data, dst)
+    return {"step": int(data["step"]), "bytes_before": Path(src).stat().st_size, "bytes_after": Path(dst).stat().st_size}
+
+
 class ExpertTrainer:
     """Train an expert for one Task-ID into `cfg.out_dir`; resumes from `out_dir/checkpoint.pt` if present."""
 

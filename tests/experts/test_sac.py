@@ -59,6 +59,21 @@ def test_resume_without_replay_refills_before_updating(tmp_path):
     assert len(tr.replay) == 150 and tr.n_updates == 201 + 51   # updates resume at 100 stored transitions
 
 
+def test_slim_checkpoint_drops_the_replay_and_resumes(tmp_path, capsys):
+    from loco_il.experts.__main__ import main
+    run, moved = tmp_path / "run", tmp_path / "moved"
+    SACTrainer(small_cfg(run), log=quiet).train()
+    moved.mkdir()
+    main(["slim", f"path={run / 'checkpoint.pt'}", f"out={moved / 'checkpoint.pt'}"])
+    info = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert info["step"] == 300 and info["bytes_after"] < info["bytes_before"]
+    messages: list[str] = []
+    tr = SACTrainer(small_cfg(moved, total_steps=450), log=messages.append)
+    assert tr.resumed_from == 300 and tr.n_updates == 201 and len(tr.replay) == 0
+    assert any("no replay memory" in m for m in messages)
+    torch.testing.assert_close(tr.policy.state_dict(), SACTrainer(small_cfg(run), log=quiet).policy.state_dict())
+
+
 def test_resume_drops_evaluations_logged_after_the_checkpoint(tmp_path):
     SACTrainer(small_cfg(tmp_path, eval_interval=100), log=quiet).train()
     log = tmp_path / "evals.jsonl"
