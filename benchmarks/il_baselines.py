@@ -48,6 +48,7 @@ ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_TASK = "Hopper.run"
 ALL_ALGOS = ["bc", "gail", "vail", "gaifo", "iqlearn", "lsiq", "lsiqfo", "sqil"]
 STATE_ONLY = {"gail", "gaifo", "lsiqfo"}
+STATE_ONLY_DATASETS = ("noact", "real")  # expert data without actions: only the STATE_ONLY learners
 FIELDS = ["algo", "dataset", "seed", "env_steps", "updates", "wall_s", "return_mean", "return_std",
           "normalized_score", "norm_ref", "run_id"]
 
@@ -63,9 +64,14 @@ def parse_value(text: str):
     return yaml.safe_load(text)
 
 
+def task_id(task: str, dataset: str) -> str:
+    """The Task-ID whose env and dataset a run uses (noact: the perfect task's, actions dropped later)."""
+    return f"{task}.{'real' if dataset == 'real' else 'perfect'}"
+
+
 def expert_data(task: str, dataset: str):
     from loco_il import LocoEnv
-    data = LocoEnv.make(f"{task}.{'real' if dataset == 'real' else 'perfect'}").create_dataset(verbose=False)
+    data = LocoEnv.make(task_id(task, dataset)).create_dataset(verbose=False)
     if dataset == "noact":
         fields = {k: getattr(data, k) for k in ("obs", "next_obs", "rewards", "absorbing", "last")}
         return SimpleNamespace(actions=None, info=dict(data.info), **fields), data
@@ -160,10 +166,10 @@ def run_one(algo: str, dataset: str, seed: int, args, writer, fh, norm, norm_des
             continue
         if key in _accepted(get_algorithm(algo)):
             cfg["params"][key] = parse_value(value)
-    if algo == "gail" and dataset in ("noact", "real"):
+    if algo == "gail" and dataset in STATE_ONLY_DATASETS:
         cfg["params"]["use_actions"] = None  # -> D(s)
     expert, _ = expert_data(args.task, dataset)
-    env_id = f"{args.task}.{'real' if dataset == 'real' else 'perfect'}"
+    env_id = task_id(args.task, dataset)
     env = LocoEnv.make(env_id, seed=seed)
     eval_env = LocoEnv.make(env_id)
     agent = build_agent(algo, env.info, cfg, seed=seed)
@@ -295,7 +301,7 @@ def main() -> None:
             print(",".join(FIELDS[:-2]), flush=True)
         for algo in args.algos:
             for dataset in args.datasets:
-                if dataset in ("noact", "real") and algo not in STATE_ONLY:
+                if dataset in STATE_ONLY_DATASETS and algo not in STATE_ONLY:
                     continue
                 for seed in args.seeds:
                     if (algo, dataset, seed) in done:
