@@ -87,6 +87,6 @@ class IQLearn(OffPolicyILAgent):
 
     def critic_loss(self, expert, policy):
         c = self.critic_values(expert, policy, need_v=True, online_next=not self.use_target,
-                               v_expert_only=self.value_loss == "v0")  # "v0" reads V on expert states only
+                               v_on="expert" if self.value_loss == "v0" else "all")  # "v0" reads V on expert states only
         return iq_critic_loss(c["q"], c["v"], c["v_next"], c["absorbing"], c["n_expert"], self.gamma,
                               self.chi2_coef, self.regularize_policy, self.value_loss)

@@ -90,16 +90,18 @@ def test_lsiq_loss_hand_computed():
     loss0, _ = lsiq_critic_loss(q, v_next, absorbing, 2, 0.9, treat_absorbing=False)
     assert loss0.item() == pytest.approx(45.25 + 21.25, abs=1e-4)
     # optional value term E_pi[V(s) - Q(s, a)] = mean(-17 + 19, -14 + 15) = 1.5
-    loss_v, _ = lsiq_critic_loss(q, v_next, absorbing, 2, 0.9, v=T(0.0, 0.0, -17.0, -14.0))
+    loss_v, _ = lsiq_critic_loss(q, v_next, absorbing, 2, 0.9, v_policy=T(-17.0, -14.0))
     assert loss_v.item() == pytest.approx(3.5 + 1.5, abs=1e-5)
 
 
 def test_lsiq_fixed_expert_loss_hand_computed():
     # gamma 0.9, c = 0.5, mix 0.5 -> r_min = -2, Q_max = 20 = -Q_min; index 0 expert, index 1 agent
-    q, v, v_next = T(18.0, -1.0), T(5.0, -3.0), T(10.0, 30.0)
+    q, v, v_next = T(18.0), T(5.0, -3.0), T(10.0, 30.0)  # Q only on the expert pair
     # expert: (18 - 20)^2 = 4; V regression on both states to -2 + 0.9 clip(V', -20, 20) = [7, 16]: mean(4, 361)
-    loss, _ = lsiq_fixed_expert_loss(q, v, v_next, T(0.0, 0.0), 1, 0.9)
+    loss, info = lsiq_fixed_expert_loss(q, v, v_next, T(0.0, 0.0), 1, 0.9)
     assert loss.item() == pytest.approx(4 + 182.5)
+    # logged implicit rewards: expert 18 - 0.9 * 10 = 9; agent V(s) - 0.9 clip(30) = -3 - 18 = -21
+    assert info["reward_expert"].item() == pytest.approx(9.0) and info["reward_policy"].item() == pytest.approx(-21.0)
     # absorbing agent transition: target r_min / (1 - gamma) = -20 -> (-3 + 20)^2 = 289
     loss_abs, _ = lsiq_fixed_expert_loss(q, v, v_next, T(0.0, 1.0), 1, 0.9)
     assert loss_abs.item() == pytest.approx(4 + (4 + 289) / 2)
@@ -245,6 +247,42 @@ def test_iqlearn_agent_v0_loss_reads_v_on_expert_states_and_target_next_value():
     assert loss.item() == pytest.approx(expected.item(), rel=1e-5)
     with pytest.raises(ValueError, match="value_loss"):
         _agent(IQLearn, value_loss="value0")
+
+
+def test_lsiq_agent_mixture_loss_reads_v_on_agent_states_only():
+    agent = _agent(LSIQ, objective="mixture")  # value_term=True by default
+    expert, policy, loss = _critic_loss_on_small_batches(agent, 1.0)
+    # by hand, same policy noise: one draw for [agent states; all next states]
+    nxt = torch.cat([expert["next_obs"], policy["next_obs"]])
+    a, logp = agent.policy_module.sample(torch.cat([policy["obs"], nxt]))
+    alpha = agent.sac.alpha
+    t1, t2 = agent.sac.critic_target(nxt, a[7:])
+    v_next = torch.minimum(t1, t2) - alpha * logp[7:]
+    q = agent.sac.critic(torch.cat([expert["obs"], policy["obs"]]), torch.cat([expert["actions"], policy["actions"]]))
+    v = agent.sac.critic(policy["obs"], a[:7])
+    absorbing = torch.cat([expert["absorbing"], policy["absorbing"]])
+    expected = sum(lsiq_critic_loss(qi, v_next, absorbing, 5, 0.99, v_policy=vi - alpha * logp[:7])[0]
+                   for qi, vi in zip(q, v))
+    assert loss.item() == pytest.approx(expected.item(), rel=1e-5)
+    with pytest.raises(ValueError, match="v_on"):
+        agent.critic_values(expert, policy, v_on="agent")
+
+
+def test_lsiq_agent_default_fixed_expert_loss_reads_v_on_all_states():
+    agent = _agent(LSIQ)  # default objective="fixed_expert"
+    expert, policy, loss = _critic_loss_on_small_batches(agent, 1.0)
+    obs = torch.cat([expert["obs"], policy["obs"]])
+    nxt = torch.cat([expert["next_obs"], policy["next_obs"]])
+    a, logp = agent.policy_module.sample(torch.cat([obs, nxt]))
+    alpha = agent.sac.alpha
+    t1, t2 = agent.sac.critic_target(nxt, a[12:])
+    v_next = torch.minimum(t1, t2) - alpha * logp[12:]
+    q = agent.sac.critic(expert["obs"], expert["actions"])
+    v = agent.sac.critic(obs, a[:12])
+    absorbing = torch.cat([expert["absorbing"], policy["absorbing"]])
+    expected = sum(lsiq_fixed_expert_loss(qi, vi - alpha * logp[:12], v_next, absorbing, 5, 0.99)[0]
+                   for qi, vi in zip(q, v))
+    assert loss.item() == pytest.approx(expected.item(), rel=1e-5)
 
 
 def test_replay_ring_buffer_keeps_newest():

@@ -131,6 +131,10 @@ class SACCore:
         self.alpha_opt.load_state_dict(state["alpha_opt"])
 
 
+# rows of [expert; policy] on which `critic_values` evaluates Q(s, a) or V(s), given the number of expert rows
+ROWS = {"all": lambda n_e: slice(None), "expert": lambda n_e: slice(None, n_e), "policy": lambda n_e: slice(n_e, None)}
+
+
 class OffPolicyILAgent(ILAgent):
     """Replay + expert buffer + SAC; subclasses implement `critic_loss(expert, policy)`.
 
@@ -214,13 +218,14 @@ class OffPolicyILAgent(ILAgent):
         raise NotImplementedError
 
     def critic_values(self, expert: dict, policy: dict, need_v: bool = True,
-                      online_next: bool = False, v_expert_only: bool = False) -> dict[str, torch.Tensor]:
+                      online_next: bool = False, v_on: str = "all", q_on: str = "all") -> dict[str, torch.Tensor]:
         """Everything the implicit-reward losses need, with one policy and one critic forward.
 
         Returns, for the concatenation [expert; policy] of length N (first `n_expert` are expert):
-          q      (2, N)  Q_i(s, a) of both heads (with grad)
-          v      (2, N)  V_i(s) = Q_i(s, a~) - alpha log pi(a~|s), a~ ~ pi(.|s)  (grad into Q only); if need_v
-                         ((2, n_expert), the expert states only, if v_expert_only: saves critic rows)
+          q      (2, N)  Q_i(s, a) of both heads (with grad); q_on="expert" / "policy": those rows only
+          v      (2, N)  V_i(s) = Q_i(s, a~) - alpha log pi(a~|s), a~ ~ pi(.|s)  (grad into Q only); if need_v.
+                         v_on="expert" / "policy" computes it on those rows only ((2, n_expert) / (2, N - n_expert)):
+                         a loss that reads V on one source only saves a third of the critic and policy rows
           v_next (2, N)  V(s'): from the online heads (with grad) if online_next, else
                          min_i Q_target_i(s', a') - alpha log pi(a'|s') (no grad), repeated for both heads
           absorbing (N,)
@@ -231,20 +236,27 @@ class OffPolicyILAgent(ILAgent):
         next_obs = torch.cat([expert["next_obs"], policy["next_obs"]])
         n = len(obs)
         alpha = self.sac.alpha
-        n_v = n_e if v_expert_only else n
+        for arg, value in (("v_on", v_on), ("q_on", q_on)):
+            if value not in ROWS:
+                raise ValueError(f"critic_values: {arg} must be one of {tuple(ROWS)}, got {value!r}")
+        v_obs = obs[ROWS[v_on](n_e)]
+        n_v = len(v_obs)
+        q_rows = ROWS[q_on](n_e)
+        q_obs, q_act = obs[q_rows], act[q_rows]
+        n_q = len(q_obs)
         with torch.no_grad():  # sampled actions are constants for the critic loss
-            pol_obs = torch.cat([obs[:n_v], next_obs]) if need_v else next_obs
+            pol_obs = torch.cat([v_obs, next_obs]) if need_v else next_obs
             a_pi, logp = self.policy_module.sample(pol_obs)
-        crit_obs, crit_act = [obs], [act]
+        crit_obs, crit_act = [q_obs], [q_act]
         if need_v:
-            crit_obs.append(obs[:n_v]); crit_act.append(a_pi[:n_v])
+            crit_obs.append(v_obs); crit_act.append(a_pi[:n_v])
         if online_next:
             crit_obs.append(next_obs); crit_act.append(a_pi[-n:])
         q1, q2 = self.sac.critic(torch.cat(crit_obs), torch.cat(crit_act))
         qs = torch.stack([q1, q2])  # (2, k * N)
-        out = {"q": qs[:, :n], "absorbing": torch.cat([expert["absorbing"], policy["absorbing"]]), "n_expert": n_e}
+        out = {"q": qs[:, :n_q], "absorbing": torch.cat([expert["absorbing"], policy["absorbing"]]), "n_expert": n_e}
         if need_v:
-            out["v"] = qs[:, n:n + n_v] - alpha * logp[:n_v]
+            out["v"] = qs[:, n_q:n_q + n_v] - alpha * logp[:n_v]
         if online_next:
             out["v_next"] = qs[:, -n:] - alpha * logp[-n:]
         else:
