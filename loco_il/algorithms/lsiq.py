@@ -26,7 +26,7 @@ Consequences used by the practical algorithm (as we read the paper):
 IQ-Learn's objective has E_pi[V(s) - gamma V(s')] where the derivation above has E_pi[r_Q]; the
 difference is the term E_pi[V(s) - Q(s, a)] (for actions of the current policy it is only the
 entropy bonus, for replayed actions of older policies it contrasts Q(s, a~pi) with Q(s, a_old)).
-It is kept by default (`value_term=True`, i.e. IQ-Learn's value-form objective on agent samples
+The mixture objective keeps it by default (`value_term=True`, i.e. IQ-Learn's value-form objective on agent samples
 under the mixture regularizer): in single-seed InvertedPendulum trials the pure least-squares
 form (`value_term=False`) reached the expert return too but then oscillated, this one stayed.
 UNCERTAIN (reported): the absorbing target per data source, the value term, and the IDM's

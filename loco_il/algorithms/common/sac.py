@@ -225,7 +225,7 @@ class OffPolicyILAgent(ILAgent):
           q      (2, N)  Q_i(s, a) of both heads (with grad); q_on="expert" / "policy": those rows only
           v      (2, N)  V_i(s) = Q_i(s, a~) - alpha log pi(a~|s), a~ ~ pi(.|s)  (grad into Q only); if need_v.
                          v_on="expert" / "policy" computes it on those rows only ((2, n_expert) / (2, N - n_expert)):
-                         a loss that reads V on one source only saves a third of the critic and policy rows
+                         rows a loss does not read are neither sampled nor run through the critic
           v_next (2, N)  V(s'): from the online heads (with grad) if online_next, else
                          min_i Q_target_i(s', a') - alpha log pi(a'|s') (no grad), repeated for both heads
           absorbing (N,)
@@ -253,7 +253,7 @@ class OffPolicyILAgent(ILAgent):
         if online_next:
             crit_obs.append(next_obs); crit_act.append(a_pi[-n:])
         q1, q2 = self.sac.critic(torch.cat(crit_obs), torch.cat(crit_act))
-        qs = torch.stack([q1, q2])  # (2, k * N)
+        qs = torch.stack([q1, q2])  # (2, rows): [Q rows; V rows if need_v; next-state rows if online_next]
         out = {"q": qs[:, :n_q], "absorbing": torch.cat([expert["absorbing"], policy["absorbing"]]), "n_expert": n_e}
         if need_v:
             out["v"] = qs[:, n_q:n_q + n_v] - alpha * logp[:n_v]
