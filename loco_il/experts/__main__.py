@@ -3,12 +3,15 @@
     python -m loco_il.experts train task=Hopper.run total_steps=2000000 num_envs=16 seed=0 out_dir=runs/hopper
     python -m loco_il.experts train task=HalfCheetah.run algo=sac total_steps=1000000 device=cuda
     python -m loco_il.experts eval path=runs/hopper/best.pt episodes=10
+    python -m loco_il.experts eval path=runs/hopper/evals episodes=30     # every kept policy; the most reliable
     python -m loco_il.experts slim path=runs/ant/checkpoint.pt out=ant_checkpoint_noreplay.pt
 
 `train` is a Hydra app (configs/train.yaml with configs/algo/<algo>.yaml, then the `<algo>:` section of
 configs/body/<Body>.yaml when it exists); re-running the same command with the same out_dir resumes from
 out_dir/checkpoint.pt. Its last output line is a JSON
-summary (final evaluation return mean and std, env steps, wall time). `eval` prints one JSON line.
+summary (final evaluation return mean and std, env steps, wall time). `eval` prints one JSON line per expert
+file; with `path=<folder>` (e.g. a run's `evals/`, written with `keep_eval_policies=true`) it evaluates every
+file in it on the same episodes and names the most reliable one (fewest episodes ended early by a fall).
 `slim` copies a checkpoint without its replay memory (a resumed run refills it); copy the result to
 <out_dir>/checkpoint.pt to go on from it.
 """
@@ -77,27 +80,47 @@ def train_main(cfg: DictConfig) -> None:
 
 @hydra.main(config_path=CONFIG_DIR, config_name="eval", version_base=None)
 def eval_main(cfg: DictConfig) -> None:
+    """One JSON line per expert file; `path` may be a folder (e.g. a run's `evals/`): then every `*.pt` in it is
+    evaluated on the same episodes and a last line names the most reliable one (fewest falls, i.e. episodes
+    that were terminated rather than truncated at the horizon, then highest mean return)."""
     import numpy as np
 
     from loco_il.experts.policy import load_expert
-    from loco_il.experts.vec import evaluate, make_vec_env
-    expert = load_expert(cfg.path)
-    task = cfg.task or expert.metadata.get("task_id")
-    if not task:
-        raise SystemExit("the expert file names no task_id; pass task=<Task-ID>")
-    envs = make_vec_env(task, max(1, int(cfg.num_envs)), cfg["async"])
-    rng = np.random.default_rng(cfg.seed)
-    act = (lambda o: expert.act(o, deterministic=False, rng=rng)) if cfg.stochastic else expert
+    from loco_il.experts.vec import evaluate_episodes, make_vec_env
+    root = Path(cfg.path)
+    paths = sorted(root.glob("*.pt")) if root.is_dir() else [root]
+    if not paths:
+        raise SystemExit(f"no expert files (*.pt) in {root}")
+    results, envs_by_task = [], {}
     try:
-        returns, lengths = evaluate(act, envs, int(cfg.episodes), seed=int(cfg.seed))
-    finally:
-        envs.close()
-    print(json.dumps({"path": str(cfg.path), "task_id": task, "episodes": int(len(returns)),
+        for path in paths:
+            expert = load_expert(path)
+            task = cfg.task or expert.metadata.get("task_id")
+            if not task:
+                raise SystemExit(f"{path} names no task_id; pass task=<Task-ID>")
+            if task not in envs_by_task:
+                envs_by_task[task] = make_vec_env(task, max(1, int(cfg.num_envs)), cfg["async"])
+            envs = envs_by_task[task]
+            rng = np.random.default_rng(cfg.seed)
+            act = (lambda o: expert.act(o, deterministic=False, rng=rng)) if cfg.stochastic else expert
+            returns, lengths, fell = evaluate_episodes(act, envs, int(cfg.episodes), seed=int(cfg.seed))
+            result = {"path": str(path), "task_id": task, "episodes": int(len(returns)),
                       "return_mean": round(float(returns.mean()), 2), "return_std": round(float(returns.std()), 2),
-                      "length_mean": round(float(lengths.mean()), 1), "returns": [round(float(r), 2) for r in returns],
+                      "return_min": round(float(returns.min()), 2), "length_mean": round(float(lengths.mean()), 1),
+                      "falls": int(fell.sum()),
+                      "returns": [round(float(r), 2) for r in returns],
                       "training_steps": expert.metadata.get("training_steps"),
-                      "stored_eval_return": expert.metadata.get("eval_return"),
-                      "checksum": expert.checksum()}), flush=True)
+                      "stored_eval_return": expert.metadata.get("eval_return"), "checksum": expert.checksum()}
+            results.append(result)
+            print(json.dumps(result), flush=True)
+    finally:
+        for envs in envs_by_task.values():
+            envs.close()
+    if root.is_dir():
+        best = min(results, key=lambda r: (r["falls"], -r["return_mean"]))
+        print(json.dumps({"most_reliable": best["path"], "falls": best["falls"],
+                          "return_mean": best["return_mean"], "return_std": best["return_std"],
+                          "evaluated": len(results)}), flush=True)
 
 
 def slim_main(argv: list[str]) -> None:

@@ -13,7 +13,8 @@ datasets), atomic checkpoints every `checkpoint_minutes` and at the end, progres
 JSON summary line. SIGINT (Ctrl-C) or SIGTERM ends the run at the end of the current iteration with a
 checkpoint, so that nothing since the last periodic checkpoint is lost; a second Ctrl-C stops at once.
 
-Files in `out_dir`: `checkpoint.pt`, `best.pt`, `final.pt`, `snapshots/step_XXXXXXXXX.pt`, `evals.jsonl`.
+Files in `out_dir`: `checkpoint.pt`, `best.pt`, `final.pt`, `snapshots/step_XXXXXXXXX.pt`, `evals.jsonl`, and with
+`keep_eval_policies=true` every evaluated policy as `evals/step_XXXXXXXXX.pt`.
 """
 from __future__ import annotations
 
@@ -61,6 +62,7 @@ class CommonConfig:
     eval_envs: int = 0                # 0: min(eval_episodes, num_envs)
     snapshot_every: float = 0.1       # fraction of total_steps between snapshots (0: none)
     snapshot_initial: bool = True     # also save the untrained policy as snapshots/step_000000000.pt
+    keep_eval_policies: bool = False  # save every evaluated policy as evals/step_XXXXXXXXX.pt (model selection)
     log_interval_s: float = 10.0
     env_kwargs: Mapping[str, Any] = field(default_factory=dict)
 
@@ -278,6 +280,10 @@ class ExpertTrainer:
         self.last_eval, self.last_eval_step = ev, self.step
         with open(self.out_dir / "evals.jsonl", "a") as f:
             f.write(json.dumps({k: v for k, v in ev.items() if k != "returns"}) + "\n")
+        if cfg.keep_eval_policies:
+            # best.pt is chosen on 10 episodes; keeping every evaluated policy lets a later, longer
+            # evaluation pick the most reliable one (the mean of a few episodes hides rare falls)
+            self.make_expert(self.metadata(ev)).save(self.out_dir / "evals" / f"step_{self.step:09d}.pt")
         if ev["return_mean"] > self.best_eval:
             self.best_eval = ev["return_mean"]
             self.make_expert(self.metadata(ev)).save(self.out_dir / "best.pt")

@@ -104,9 +104,16 @@ def evaluate(act_fn: Callable[[np.ndarray], np.ndarray], vec_env: VectorEnv, epi
     of (act_fn, seed, n). Envs that finished their share keep stepping until all have; those steps
     are ignored.
     """
+    returns, lengths, _ = evaluate_episodes(act_fn, vec_env, episodes, seed)
+    return returns, lengths
+
+
+def evaluate_episodes(act_fn: Callable[[np.ndarray], np.ndarray], vec_env: VectorEnv, episodes: int,
+                      seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """`evaluate`, plus for each episode whether it was terminated (a fall) rather than truncated."""
     n = vec_env.num_envs
     quota = np.array([episodes // n + (1 if i < episodes % n else 0) for i in range(n)])
-    done: list[list[tuple[float, int]]] = [[] for _ in range(n)]
+    done: list[list[tuple[float, int, bool]]] = [[] for _ in range(n)]
     obs, _ = vec_env.reset(seed=[seed + i for i in range(n)])
     ret, length = np.zeros(n), np.zeros(n, dtype=np.int64)
     while any(len(done[i]) < quota[i] for i in range(n)):
@@ -114,10 +121,12 @@ def evaluate(act_fn: Callable[[np.ndarray], np.ndarray], vec_env: VectorEnv, epi
         obs, reward, terminated, truncated, _ = vec_env.step(actions)
         ret += reward
         length += 1
-        ended = np.asarray(terminated) | np.asarray(truncated)
+        terminated = np.asarray(terminated)
+        ended = terminated | np.asarray(truncated)
         for i in np.flatnonzero(ended):
             if len(done[i]) < quota[i]:
-                done[i].append((float(ret[i]), int(length[i])))
+                done[i].append((float(ret[i]), int(length[i]), bool(terminated[i])))
         ret[ended], length[ended] = 0.0, 0
     ordered = [done[k % n][k // n] for k in range(episodes)]
-    return np.array([r for r, _ in ordered]), np.array([n_ for _, n_ in ordered], dtype=np.int64)
+    return (np.array([e[0] for e in ordered]), np.array([e[1] for e in ordered], dtype=np.int64),
+            np.array([e[2] for e in ordered], dtype=bool))

@@ -219,6 +219,20 @@ def test_eval_function_reproducible():
     assert len(r1) == 3 and np.array_equal(r1, r2) and np.array_equal(l1, l2)
 
 
+def test_evaluate_episodes_tells_falls_from_time_limits():
+    from loco_il.experts.vec import evaluate_episodes
+    push = lambda obs: np.ones((len(obs), 1))  # noqa: E731   (full force: the pole falls within a few steps)
+    envs = make_vec_env(TASK, 2, False)
+    _, lengths, fell = evaluate_episodes(push, envs, 3, seed=0)
+    envs.close()
+    assert fell.all() and (lengths < 1000).all()
+    zero = lambda obs: np.zeros((len(obs), 1))  # noqa: E731
+    short = make_vec_env(TASK, 1, False, env_kwargs={"horizon": 3})    # truncated before the pole can fall
+    _, lengths, fell = evaluate_episodes(zero, short, 2, seed=0)
+    short.close()
+    assert not fell.any() and (lengths == 3).all()
+
+
 # ---------------------------------------------------------------------------- CLI
 def test_cli_train_and_eval(tmp_path):
     env = dict(os.environ, PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""))
@@ -236,6 +250,16 @@ def test_cli_train_and_eval(tmp_path):
     assert proc.returncode == 0, proc.stderr[-3000:]
     result = json.loads(proc.stdout.strip().splitlines()[-1])
     assert result["episodes"] == 2 and result["task_id"] == TASK
+    # a folder: every policy on the same episodes, then the most reliable (fewest falls, then best mean)
+    proc = subprocess.run([sys.executable, "-m", "loco_il.experts", "eval", f"path={out / 'snapshots'}",
+                           "episodes=2"], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    *lines, last = [json.loads(line) for line in proc.stdout.strip().splitlines()]
+    assert [Path(r["path"]).name for r in lines] == sorted(p.name for p in (out / "snapshots").iterdir())
+    untrained = lines[0]
+    assert untrained["training_steps"] == 0 and untrained["falls"] == 2 and untrained["length_mean"] < 1000
+    best = min(lines, key=lambda r: (r["falls"], -r["return_mean"]))
+    assert last["most_reliable"] == best["path"] and last["evaluated"] == len(lines)
 
 
 def test_per_body_config_sits_between_train_yaml_and_command_line():

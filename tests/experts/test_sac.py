@@ -109,3 +109,17 @@ def test_sac_learns_inverted_pendulum(tmp_path):
                     hidden=(256, 256), eval_interval=1000, eval_episodes=5)
     summary = SACTrainer(cfg, log=quiet).train()
     assert summary["best_eval_return"] >= 5 * random_return, (summary, random_return)
+
+
+def test_keep_eval_policies_saves_every_evaluated_policy(tmp_path):
+    # SAC iterates ~1000 env steps at a time: 2100 steps with eval_interval 1000 evaluate at 1000, 2000, 2100
+    SACTrainer(small_cfg(tmp_path, total_steps=2100, hidden=(8, 8), eval_interval=1000, keep_eval_policies=True),
+               log=quiet).train()
+    files = sorted(p.name for p in (tmp_path / "evals").glob("step_*.pt"))
+    evals = [json.loads(line) for line in (tmp_path / "evals.jsonl").read_text().splitlines()]
+    assert files == [f"step_{ev['step']:09d}.pt" for ev in evals] and len(files) >= 3
+    last = load_expert(tmp_path / "evals" / files[-1])
+    assert last.metadata["training_steps"] == evals[-1]["step"]
+    assert last.metadata["eval_return"] == evals[-1]["return_mean"]
+    SACTrainer(small_cfg(tmp_path / "off"), log=quiet).train()
+    assert not (tmp_path / "off" / "evals").exists()          # off by default
