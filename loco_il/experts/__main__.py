@@ -11,7 +11,7 @@ configs/body/<Body>.yaml when it exists); re-running the same command with the s
 out_dir/checkpoint.pt. Its last output line is a JSON
 summary (final evaluation return mean and std, env steps, wall time). `eval` prints one JSON line per expert
 file; with `path=<folder>` (e.g. a run's `evals/`, written with `keep_eval_policies=true`) it evaluates every
-file in it on the same episodes and names the most reliable one (fewest episodes ended early by a fall).
+file in it on the same episodes and names the most reliable one (fewest terminated episodes).
 `slim` copies a checkpoint without its replay memory (a resumed run refills it); copy the result to
 <out_dir>/checkpoint.pt to go on from it.
 """
@@ -81,8 +81,9 @@ def train_main(cfg: DictConfig) -> None:
 @hydra.main(config_path=CONFIG_DIR, config_name="eval", version_base=None)
 def eval_main(cfg: DictConfig) -> None:
     """One JSON line per expert file; `path` may be a folder (e.g. a run's `evals/`): then every `*.pt` in it is
-    evaluated on the same episodes and a last line names the most reliable one (fewest falls, i.e. episodes
-    that were terminated rather than truncated at the horizon, then highest mean return)."""
+    evaluated on the same episodes and a last line names the most reliable one (fewest terminated episodes,
+    i.e. ended by a fall or by leaving the healthy range rather than truncated at the horizon, then highest
+    mean return)."""
     import numpy as np
 
     from loco_il.experts.policy import load_expert
@@ -103,11 +104,11 @@ def eval_main(cfg: DictConfig) -> None:
             envs = envs_by_task[task]
             rng = np.random.default_rng(cfg.seed)
             act = (lambda o: expert.act(o, deterministic=False, rng=rng)) if cfg.stochastic else expert
-            returns, lengths, fell = evaluate_episodes(act, envs, int(cfg.episodes), seed=int(cfg.seed))
+            returns, lengths, terminated = evaluate_episodes(act, envs, int(cfg.episodes), seed=int(cfg.seed))
             result = {"path": str(path), "task_id": task, "episodes": int(len(returns)),
                       "return_mean": round(float(returns.mean()), 2), "return_std": round(float(returns.std()), 2),
                       "return_min": round(float(returns.min()), 2), "length_mean": round(float(lengths.mean()), 1),
-                      "falls": int(fell.sum()),
+                      "terminated": int(terminated.sum()),
                       "returns": [round(float(r), 2) for r in returns],
                       "training_steps": expert.metadata.get("training_steps"),
                       "stored_eval_return": expert.metadata.get("eval_return"), "checksum": expert.checksum()}
@@ -117,8 +118,8 @@ def eval_main(cfg: DictConfig) -> None:
         for envs in envs_by_task.values():
             envs.close()
     if root.is_dir():
-        best = min(results, key=lambda r: (r["falls"], -r["return_mean"]))
-        print(json.dumps({"most_reliable": best["path"], "falls": best["falls"],
+        best = min(results, key=lambda r: (r["terminated"], -r["return_mean"]))
+        print(json.dumps({"most_reliable": best["path"], "terminated": best["terminated"],
                           "return_mean": best["return_mean"], "return_std": best["return_std"],
                           "evaluated": len(results)}), flush=True)
 

@@ -110,7 +110,8 @@ def evaluate(act_fn: Callable[[np.ndarray], np.ndarray], vec_env: VectorEnv, epi
 
 def evaluate_episodes(act_fn: Callable[[np.ndarray], np.ndarray], vec_env: VectorEnv, episodes: int,
                       seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """`evaluate`, plus for each episode whether it was terminated (a fall) rather than truncated."""
+    """`evaluate`, plus for each episode whether it was terminated (a fall, leaving the healthy range) rather
+    than truncated at the time limit."""
     n = vec_env.num_envs
     quota = np.array([episodes // n + (1 if i < episodes % n else 0) for i in range(n)])
     done: list[list[tuple[float, int, bool]]] = [[] for _ in range(n)]

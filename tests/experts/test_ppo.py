@@ -250,15 +250,15 @@ def test_cli_train_and_eval(tmp_path):
     assert proc.returncode == 0, proc.stderr[-3000:]
     result = json.loads(proc.stdout.strip().splitlines()[-1])
     assert result["episodes"] == 2 and result["task_id"] == TASK
-    # a folder: every policy on the same episodes, then the most reliable (fewest falls, then best mean)
+    # a folder: every policy on the same episodes, then the most reliable (fewest terminated, then best mean)
     proc = subprocess.run([sys.executable, "-m", "loco_il.experts", "eval", f"path={out / 'snapshots'}",
                            "episodes=2"], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr[-3000:]
     *lines, last = [json.loads(line) for line in proc.stdout.strip().splitlines()]
     assert [Path(r["path"]).name for r in lines] == sorted(p.name for p in (out / "snapshots").iterdir())
     untrained = lines[0]
-    assert untrained["training_steps"] == 0 and untrained["falls"] == 2 and untrained["length_mean"] < 1000
-    best = min(lines, key=lambda r: (r["falls"], -r["return_mean"]))
+    assert untrained["training_steps"] == 0 and untrained["terminated"] == 2 and untrained["length_mean"] < 1000
+    best = min(lines, key=lambda r: (r["terminated"], -r["return_mean"]))
     assert last["most_reliable"] == best["path"] and last["evaluated"] == len(lines)
 
 
