@@ -280,14 +280,14 @@ class ExpertTrainer:
         self.last_eval, self.last_eval_step = ev, self.step
         with open(self.out_dir / "evals.jsonl", "a") as f:
             f.write(json.dumps({k: v for k, v in ev.items() if k != "returns"}) + "\n")
-        evaluated = self.make_expert(self.metadata(ev))
+        expert.metadata.update(self.metadata(ev))      # the policy just evaluated, saved as is below
         if cfg.keep_eval_policies:
             # best.pt is chosen on 10 episodes; keeping every evaluated policy lets a later, longer
             # evaluation pick the most reliable one (the mean of a few episodes hides rare early ends)
-            evaluated.save(self.out_dir / "evals" / f"step_{self.step:09d}.pt")
+            expert.save(self.out_dir / "evals" / f"step_{self.step:09d}.pt")
         if ev["return_mean"] > self.best_eval:
             self.best_eval = ev["return_mean"]
-            evaluated.save(self.out_dir / "best.pt")
+            expert.save(self.out_dir / "best.pt")
         return ev
 
     def _snapshot_thresholds(self) -> list[int]:

@@ -223,14 +223,14 @@ def test_evaluate_episodes_tells_falls_from_time_limits():
     from loco_il.experts.vec import evaluate_episodes
     push = lambda obs: np.ones((len(obs), 1))  # noqa: E731   (full force: the pole falls within a few steps)
     envs = make_vec_env(TASK, 2, False)
-    _, lengths, fell = evaluate_episodes(push, envs, 3, seed=0)
+    _, lengths, terminated = evaluate_episodes(push, envs, 3, seed=0)
     envs.close()
-    assert fell.all() and (lengths < 1000).all()
+    assert terminated.all() and (lengths < 1000).all()
     zero = lambda obs: np.zeros((len(obs), 1))  # noqa: E731
     short = make_vec_env(TASK, 1, False, env_kwargs={"horizon": 3})    # truncated before the pole can fall
-    _, lengths, fell = evaluate_episodes(zero, short, 2, seed=0)
+    _, lengths, terminated = evaluate_episodes(zero, short, 2, seed=0)
     short.close()
-    assert not fell.any() and (lengths == 3).all()
+    assert not terminated.any() and (lengths == 3).all()
 
 
 # ---------------------------------------------------------------------------- CLI
