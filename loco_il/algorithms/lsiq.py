@@ -166,7 +166,7 @@ class LSIQfO(LSIQ):
                  idm_lr: float = 3e-4, idm_steps_per_update: int = 1, **kwargs):
         super().__init__(mdp_info, policy_module, **kwargs)
         self.idm = nn.Sequential(mlp(2 * self.obs_dim, self.act_dim, idm_hidden), nn.Tanh()).to(self.device)
-        self.idm_opt = torch.optim.Adam(self.idm.parameters(), lr=idm_lr)
+        self.idm_opt = torch.optim.Adam(self.idm.parameters(), lr=idm_lr, foreach=True)  # as SACCore's optimizers
         self.idm_steps_per_update = idm_steps_per_update
         self._register_checkpoint("idm", self.idm)
         self._register_checkpoint("idm_opt", self.idm_opt)

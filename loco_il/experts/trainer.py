@@ -245,6 +245,9 @@ class ExpertTrainer:
     def _drop_evals_after(self, step: int) -> None:
         """Evaluations logged after the checkpoint belong to steps that will be re-run: drop them, so that
         `evals.jsonl` holds one row per evaluated step of the history that continues."""
+        for kept_policy in (self.out_dir / "evals").glob("step_*.pt"):   # keep_eval_policies files likewise
+            if int(kept_policy.stem.split("_")[1]) > step:
+                kept_policy.unlink()
         path = self.out_dir / "evals.jsonl"
         if not path.exists():
             return

@@ -3,6 +3,7 @@ memory), squashed expert files, and learning on InvertedPendulum."""
 from __future__ import annotations
 
 import json
+import shutil
 
 import numpy as np
 import torch
@@ -75,15 +76,17 @@ def test_slim_checkpoint_drops_the_replay_and_resumes(tmp_path, capsys):
 
 
 def test_resume_drops_evaluations_logged_after_the_checkpoint(tmp_path):
-    SACTrainer(small_cfg(tmp_path, eval_interval=100), log=quiet).train()
+    SACTrainer(small_cfg(tmp_path, eval_interval=100, keep_eval_policies=True), log=quiet).train()
     log = tmp_path / "evals.jsonl"
     steps = [json.loads(line)["step"] for line in log.read_text().splitlines()]
     assert steps[-1] == 300
     # a killed run evaluated at step 350 after its last checkpoint (300): that step will be re-run
     with open(log, "a") as f:
         f.write(json.dumps({"step": 350, "return_mean": 1.0}) + "\n")
-    tr = SACTrainer(small_cfg(tmp_path, eval_interval=100, total_steps=400), log=quiet)
+    shutil.copy(tmp_path / "evals" / "step_000000300.pt", tmp_path / "evals" / "step_000000350.pt")
+    tr = SACTrainer(small_cfg(tmp_path, eval_interval=100, total_steps=400, keep_eval_policies=True), log=quiet)
     assert [json.loads(line)["step"] for line in log.read_text().splitlines()] == steps
+    assert sorted(p.name for p in (tmp_path / "evals").glob("*.pt")) == [f"step_{s:09d}.pt" for s in steps]
     tr.train()
     after = [json.loads(line)["step"] for line in log.read_text().splitlines()]
     assert after[:len(steps)] == steps and after[len(steps):] == [400]
