@@ -105,7 +105,8 @@ def slim_checkpoint(src: str | Path, dst: str | Path) -> dict[str, Any]:
     """Copy an expert-training checkpoint without its replay memory (SAC's is ~250 bytes per transition).
 
     The copy resumes like any checkpoint saved with `checkpoint_replay=false`: the run refills the replay
-    memory with its current policy (`learning_starts` steps) before updates go on. Use it to move a run to
+    memory (`learning_starts` steps; by the current policy, or by `refill_from`'s policy files) before
+    updates go on. Use it to move a run to
     another machine or to keep a long run's state small enough to store. Returns the step and both sizes."""
     data = torch.load(src, map_location="cpu", weights_only=True)
     if data.get("format") != CHECKPOINT_FORMAT:

@@ -2,10 +2,12 @@
 memory), squashed expert files, and learning on InvertedPendulum."""
 from __future__ import annotations
 
+import copy
 import json
 import shutil
 
 import numpy as np
+import pytest
 import torch
 
 from loco_il.datasets.baselines import load_baselines
@@ -58,6 +60,37 @@ def test_resume_without_replay_refills_before_updating(tmp_path):
     assert len(tr.replay) == 0 and any("no replay memory" in m for m in messages)
     tr.train()
     assert len(tr.replay) == 150 and tr.n_updates == 201 + 51   # updates resume at 100 stored transitions
+
+
+def test_refill_from_policy_files_splits_the_refill_among_them(tmp_path):
+    run, kept = tmp_path / "run", tmp_path / "kept"
+    SACTrainer(small_cfg(run, checkpoint_replay=False), log=quiet).train()
+    files = [kept / "step_000000001.pt", kept / "step_000000002.pt"]
+    for seed, file in enumerate(files):         # two different policies
+        SACTrainer(small_cfg(tmp_path / f"other{seed}", seed=seed + 1), log=quiet).make_expert().save(file)
+    messages: list[str] = []
+    tr = SACTrainer(small_cfg(run, checkpoint_replay=False, total_steps=450, learning_starts=100,
+                              refill_from=str(kept)), log=messages.append)
+    assert any("2 policies of" in m for m in messages)
+    tr.start()
+
+    def store(n: int) -> None:                 # n placeholder transitions
+        zeros = np.zeros((n, tr.obs_dim))
+        tr.replay.add(zeros, zeros, np.zeros(n), np.zeros((n, tr.act_dim)), np.zeros(n))
+
+    for share in (0, 1):                       # the first 50 refill steps by the first file, then 50 by the second
+        rng = copy.deepcopy(tr.rng)
+        expected = load_expert(files[share]).act(tr._obs, deterministic=False, rng=rng)
+        np.testing.assert_allclose(tr._actions(), expected, rtol=1e-6)
+        store(50)
+    rng = copy.deepcopy(tr.rng)                # refilled: the current policy acts again
+    with torch.no_grad():
+        torch.manual_seed(0)
+        expected = tr.policy.sample(torch.as_tensor(tr._obs, dtype=torch.float32))[0].numpy()
+        torch.manual_seed(0)
+        np.testing.assert_allclose(tr._actions(), expected)
+    with pytest.raises(FileNotFoundError, match="no policy files"):
+        SACTrainer(small_cfg(run, checkpoint_replay=False, refill_from=str(tmp_path)), log=quiet)
 
 
 def test_slim_checkpoint_drops_the_replay_and_resumes(tmp_path, capsys):
