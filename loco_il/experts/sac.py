@@ -18,9 +18,10 @@ The shipped expert is the deterministic tanh(mean) policy with no observation no
 `checkpoint_replay`), evaluations, snapshots and files come from `trainer.ExpertTrainer`. A checkpoint
 without the replay memory resumes with an empty one, refilled (`learning_starts` steps) before updates go
 on: by the current policy, or with `refill_from=<folder>` by the policy files there (e.g. the run's
-`snapshots/`), in the order of their step, each sampling an equal share of the steps. A memory filled by the
-current policy alone is much narrower than the lost one (which held the run's whole history, falls
-included): a Humanoid run at 650k steps resumed that way fell from 4781 to ~400 within 50k steps.
+`snapshots/`), in the order of their step, each sampling an equal share of the steps: closer to the lost
+memory, which held the run's whole history, falls included. Neither is the lost memory: a Humanoid run at
+650k steps (eval 4781) fell to ~400 within 50k steps after a 10k-step refill by its current policy, and to
+~1000 after a 150k-step refill by either source (benchmarks/RESULTS.md, eighth session).
 """
 from __future__ import annotations
 
