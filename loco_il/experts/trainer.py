@@ -106,8 +106,8 @@ def slim_checkpoint(src: str | Path, dst: str | Path) -> dict[str, Any]:
 
     The copy resumes like any checkpoint saved with `checkpoint_replay=false`: the run refills the replay
     memory (`learning_starts` steps; by the current policy, or by `refill_from`'s policy files) before
-    updates go on. Use it to move a run to
-    another machine or to keep a long run's state small enough to store. Returns the step and both sizes."""
+    updates go on. Use it to move a run to another machine or to keep a long run's state small enough to
+    store. Returns the step and both sizes."""
     data = torch.load(src, map_location="cpu", weights_only=True)
     if data.get("format") != CHECKPOINT_FORMAT:
         raise ValueError(f"{src} is not an expert-training checkpoint of this version")

@@ -83,8 +83,7 @@ def test_refill_from_policy_files_splits_the_refill_among_them(tmp_path):
         expected = load_expert(files[share]).act(tr._obs, deterministic=False, rng=rng)
         np.testing.assert_allclose(tr._actions(), expected, rtol=1e-6)
         store(50)
-    rng = copy.deepcopy(tr.rng)                # refilled: the current policy acts again
-    with torch.no_grad():
+    with torch.no_grad():                      # refilled: the current policy acts again
         torch.manual_seed(0)
         expected = tr.policy.sample(torch.as_tensor(tr._obs, dtype=torch.float32))[0].numpy()
         torch.manual_seed(0)
