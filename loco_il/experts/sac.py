@@ -61,6 +61,8 @@ class SACConfig(CommonConfig):
     updates_per_step: float = 1.0
     checkpoint_replay: bool = True
     refill_from: str = ""                  # folder of policy files that refill a lost replay memory (see below)
+    init_action: str = "zero"              # "home": the initial policy's mean commands the standing keyframe
+    init_log_std: float | None = None      # initial log-std of the actor (before tanh); None: default init
 
 
 def soft_td_target(rewards: torch.Tensor, absorbing: torch.Tensor, next_v: torch.Tensor,
@@ -84,6 +86,20 @@ def refill_policies(folder: str) -> list[ExpertPolicy]:
     return [load_expert(f) for f in files]
 
 
+def init_actor_output(policy: GaussianPolicy, mean_action: np.ndarray, log_std: float) -> None:
+    """Start a tanh-squashed actor near `mean_action` with std exp(log_std) before tanh.
+
+    The last layer's weights are scaled down (x0.01) so that its biases decide the initial output for every
+    observation: bias = atanh(mean_action) for the mean half, `log_std` for the log-std half.
+    """
+    last = [m for m in policy.net.modules() if isinstance(m, torch.nn.Linear)][-1]
+    act = np.clip(np.asarray(mean_action, dtype=np.float64), -0.97, 0.97)   # atanh stays finite
+    with torch.no_grad():
+        last.weight.mul_(0.01)
+        last.bias[: policy.act_dim] = torch.as_tensor(np.arctanh(act), dtype=last.bias.dtype)
+        last.bias[policy.act_dim:] = float(log_std)
+
+
 class SACTrainer(ExpertTrainer):
     config_class = SACConfig
     name = "SAC"
@@ -93,6 +109,8 @@ class SACTrainer(ExpertTrainer):
         cfg = self.cfg
         self.policy = GaussianPolicy(self.obs_dim, self.act_dim, cfg.hidden, squash=True,
                                      activation=ACTIVATIONS[cfg.activation]).to(self.device)
+        if cfg.init_action != "zero" or cfg.init_log_std is not None:
+            init_actor_output(self.policy, self.initial_mean(), 0.0 if cfg.init_log_std is None else cfg.init_log_std)
         self.sac = SACCore(self.policy, self.obs_dim, self.act_dim, cfg.hidden, cfg.gamma, cfg.tau,
                            cfg.actor_lr, cfg.critic_lr, cfg.alpha_lr, cfg.init_alpha, True, cfg.target_entropy,
                            None, self.device)
@@ -103,6 +121,16 @@ class SACTrainer(ExpertTrainer):
         self.n_updates = 0
         self._update_credit = 0.0
         self._stats: dict[str, torch.Tensor] = {}
+
+    def initial_mean(self) -> np.ndarray:
+        """The initial policy's mean action: zeros, or the body's home action with `init_action=home`."""
+        if self.cfg.init_action == "zero":
+            return np.zeros(self.act_dim)
+        if self.cfg.init_action != "home":
+            raise ValueError(f"init_action={self.cfg.init_action!r}: expected 'zero' or 'home'")
+        if self.home_action is None:
+            raise ValueError(f"init_action=home: {self.task_id} has no home action (only position-servo robots do)")
+        return self.home_action
 
     def learner_state(self) -> dict[str, Any]:
         return {"policy": {k: v.detach().cpu() for k, v in self.policy.state_dict().items()},

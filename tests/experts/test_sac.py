@@ -12,7 +12,8 @@ import torch
 
 from loco_il.datasets.baselines import load_baselines
 from loco_il.experts import load_expert
-from loco_il.experts.sac import SACTrainer, soft_td_target, twin_critic_loss
+from loco_il.algorithms.common.networks import GaussianPolicy
+from loco_il.experts.sac import SACTrainer, init_actor_output, soft_td_target, twin_critic_loss
 
 TASK = "InvertedPendulum.balance.perfect"
 
@@ -158,3 +159,28 @@ def test_keep_eval_policies_saves_every_evaluated_policy(tmp_path):
     assert last.metadata["eval_return"] == evals[-1]["return_mean"]
     SACTrainer(small_cfg(tmp_path / "off"), log=quiet).train()
     assert not (tmp_path / "off" / "evals").exists()          # off by default
+
+
+def test_init_actor_output_sets_mean_and_spread_for_any_observation():
+    torch.manual_seed(0)
+    policy = GaussianPolicy(5, 3, (16, 16), squash=True)
+    target = np.array([0.5, -0.2, 0.99])           # 0.99 is clipped to 0.97 so that atanh stays finite
+    init_actor_output(policy, target, log_std=-3.0)
+    obs = torch.randn(64, 5)
+    mean, log_std = policy._mean_log_std(obs)
+    np.testing.assert_allclose(torch.tanh(mean).detach().numpy(), np.tile([0.5, -0.2, 0.97], (64, 1)), atol=0.02)
+    np.testing.assert_allclose(log_std.detach().numpy(), -3.0, atol=0.05)
+
+
+def test_init_action_home_starts_from_the_standing_servo_targets(tmp_path):
+    tr = SACTrainer(small_cfg(tmp_path, task="BoosterT1.walk", init_action="home", init_log_std=-3.0), log=quiet)
+    assert tr.home_action is not None and np.abs(tr.home_action).max() > 0.1
+    expert = tr.make_expert()
+    obs = np.random.default_rng(0).normal(size=(8, tr.obs_dim))
+    np.testing.assert_allclose(expert(obs), np.tile(np.clip(tr.home_action, -0.97, 0.97), (8, 1)), atol=0.05)
+    default = SACTrainer(small_cfg(tmp_path / "zero", task="BoosterT1.walk"), log=quiet)
+    assert np.abs(default.make_expert()(obs)).max() < 0.5           # the default init stays near zero
+    with pytest.raises(ValueError, match="no home action"):
+        SACTrainer(small_cfg(tmp_path / "pendulum", init_action="home"), log=quiet)
+    with pytest.raises(ValueError, match="init_action='stand'"):
+        SACTrainer(small_cfg(tmp_path / "typo", init_action="stand"), log=quiet)
