@@ -22,6 +22,12 @@ on: by the current policy, or with `refill_from=<folder>` by the policy files th
 memory, which held the run's whole history, falls included. Neither is the lost memory: a Humanoid run at
 650k steps (eval 4781) fell to ~400 within 50k steps after a 10k-step refill by its current policy, and to
 ~1000 after a 150k-step refill by either source (benchmarks/RESULTS.md, eighth session).
+
+`alive_bonus` shapes the training reward only (the logged returns, evaluations and datasets keep the env's
+reward). It matters for tasks whose reward is small and bounded, like the robots' velocity tracking
+exp(-(v_x - v*)^2) in (0, 1]: SAC's soft reward r - alpha log pi turns negative once alpha |log pi| exceeds
+r, and since a fall ends the episode with no further entropy terms, the policy then learns to fall early
+(seen on G1.walk: the critic loss grew to ~5e4 within 90k steps while episodes stayed ~40 steps long).
 """
 from __future__ import annotations
 
@@ -63,6 +69,7 @@ class SACConfig(CommonConfig):
     refill_from: str = ""                  # folder of policy files that refill a lost replay memory (see below)
     init_action: str = "zero"              # "home": the initial policy's mean commands the standing keyframe
     init_log_std: float | None = None      # initial log-std of the actor (before tanh); None: default init
+    alive_bonus: float = 0.0               # added to every training reward (not to logged returns), see below
 
 
 def soft_td_target(rewards: torch.Tensor, absorbing: torch.Tensor, next_v: torch.Tensor,
@@ -194,7 +201,7 @@ class SACTrainer(ExpertTrainer):
             for i in np.flatnonzero(ended):   # SAME_STEP autoreset: the episode's last obs is in final_obs
                 real_next[i] = infos["final_obs"][i]
             self.replay.add(self._obs, real_next, np.asarray(terminated, dtype=np.float32), actions,
-                            np.asarray(reward, dtype=np.float32))
+                            np.asarray(reward, dtype=np.float32) + np.float32(cfg.alive_bonus))
             self.track_episodes(reward, ended)
             self._obs = next_obs
             self.step += n

@@ -184,3 +184,15 @@ def test_init_action_home_starts_from_the_standing_servo_targets(tmp_path):
         SACTrainer(small_cfg(tmp_path / "pendulum", init_action="home"), log=quiet)
     with pytest.raises(ValueError, match="init_action='stand'"):
         SACTrainer(small_cfg(tmp_path / "typo", init_action="stand"), log=quiet)
+
+
+def test_alive_bonus_shapes_training_rewards_only(tmp_path):
+    base = SACTrainer(small_cfg(tmp_path / "base", total_steps=120), log=quiet)
+    base.train()
+    shaped = SACTrainer(small_cfg(tmp_path / "shaped", total_steps=120, alive_bonus=0.5), log=quiet)
+    shaped.train()
+    # the first 100 steps take the same seeded random actions in both runs
+    torch.testing.assert_close(shaped.replay.rewards[:100], base.replay.rewards[:100] + 0.5)
+    # logged episode returns are the env's (InvertedPendulum: 1 per step alive, 0 on the falling step)
+    assert all(ret <= length for ret, length in shaped.recent)
+    assert shaped.recent[0] == base.recent[0]        # the first episode ends during the random steps
