@@ -28,6 +28,10 @@ reward). It matters for tasks whose reward is small and bounded, like the robots
 exp(-(v_x - v*)^2) in (0, 1]: SAC's soft reward r - alpha log pi turns negative once alpha |log pi| exceeds
 r, and since a fall ends the episode with no further entropy terms, the policy then learns to fall early
 (seen on G1.walk: the critic loss grew to ~5e4 within 90k steps while episodes stayed ~40 steps long).
+A fixed bonus only moves the threshold: on G1 the temperature then rose to ~0.45 (noise topples it, so the
+policy keeps its entropy below the target) and the same happened at 90k steps. `backup_entropy=false` removes
+the cause: the critic's target leaves out the entropy term (Q sums the training reward only, so a fall always
+costs), while the actor's loss and the temperature keep theirs.
 """
 from __future__ import annotations
 
@@ -70,6 +74,7 @@ class SACConfig(CommonConfig):
     init_action: str = "zero"              # "home": the initial policy's mean commands the standing keyframe
     init_log_std: float | None = None      # initial log-std of the actor (before tanh); None: default init
     alive_bonus: float = 0.0               # added to every training reward (not to logged returns), see below
+    backup_entropy: bool = True            # False: the critic's target leaves out -alpha log pi (see below)
 
 
 def soft_td_target(rewards: torch.Tensor, absorbing: torch.Tensor, next_v: torch.Tensor,
@@ -215,8 +220,8 @@ class SACTrainer(ExpertTrainer):
     def update(self) -> dict[str, torch.Tensor]:
         """One critic, actor, temperature and target step on a replay batch."""
         batch = self.replay.sample(self.cfg.batch_size, self.rng)
-        target = soft_td_target(batch["rewards"], batch["absorbing"], self.sac.target_soft_value(batch["next_obs"]),
-                                self.sac.gamma)
+        next_v = self.sac.target_soft_value(batch["next_obs"], with_entropy=self.cfg.backup_entropy)
+        target = soft_td_target(batch["rewards"], batch["absorbing"], next_v, self.sac.gamma)
         q1, q2 = self.sac.critic(batch["obs"], batch["actions"])
         loss = twin_critic_loss(q1, q2, target)
         self.sac.critic_step(loss)

@@ -13,7 +13,7 @@ from torch import nn
 from loco_il.algorithms.common.agent_base import ALGORITHMS, get_algorithm
 from loco_il.algorithms.common.networks import GaussianPolicy
 from loco_il.algorithms.common.replay import TransitionBuffer
-from loco_il.algorithms.common.sac import actor_loss, polyak_update, temperature_loss
+from loco_il.algorithms.common.sac import SACCore, actor_loss, polyak_update, temperature_loss
 from loco_il.algorithms.iq_learn import IQLearn, iq_critic_loss
 from loco_il.algorithms.lsiq import (LSIQ, LSIQfO, lsiq_bounds, lsiq_critic_loss, lsiq_fixed_expert_loss,
                                      lsiq_targets)
@@ -147,6 +147,18 @@ def test_temperature_update_sign(log_prob, alpha_goes_up):
     loss.backward()
     opt.step()
     assert (log_alpha.item() > 0) == alpha_goes_up
+
+
+def test_target_soft_value_with_and_without_the_entropy_term():
+    torch.manual_seed(0)
+    core = SACCore(GaussianPolicy(3, 2, (8,)), 3, 2, (8,), init_alpha=0.7)
+    next_obs = torch.randn(5, 3)
+    torch.manual_seed(1)
+    action, logp = core.policy.sample(next_obs)
+    q_min = torch.minimum(*core.critic_target(next_obs, action)).detach()
+    for with_entropy, expected in [(True, q_min - 0.7 * logp.detach()), (False, q_min)]:
+        torch.manual_seed(1)                           # the same sampled a' ~ pi(.|s')
+        torch.testing.assert_close(core.target_soft_value(next_obs, with_entropy=with_entropy), expected)
 
 
 def test_polyak_update():

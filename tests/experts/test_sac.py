@@ -196,3 +196,13 @@ def test_alive_bonus_shapes_training_rewards_only(tmp_path):
     # logged episode returns are the env's (InvertedPendulum: 1 per step alive, 0 on the falling step)
     assert all(ret <= length for ret, length in shaped.recent)
     assert shaped.recent[0] == base.recent[0]        # the first episode ends during the random steps
+
+
+def test_backup_entropy_false_drops_the_entropy_term_from_the_critic_target(tmp_path, monkeypatch):
+    seen: list[bool] = []
+    tr = SACTrainer(small_cfg(tmp_path, total_steps=110, backup_entropy=False), log=quiet)
+    original = tr.sac.target_soft_value
+    monkeypatch.setattr(tr.sac, "target_soft_value",
+                        lambda obs, with_entropy=True: seen.append(with_entropy) or original(obs, with_entropy))
+    tr.train()
+    assert len(seen) == tr.n_updates > 0 and not any(seen)

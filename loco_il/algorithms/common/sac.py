@@ -76,11 +76,16 @@ class SACCore:
         return self.log_alpha.detach().exp()
 
     @torch.no_grad()
-    def target_soft_value(self, next_obs: torch.Tensor) -> torch.Tensor:
-        """V_target(s') = min_i Q_target_i(s', a') - alpha log pi(a'|s'), a' ~ pi(.|s')."""
+    def target_soft_value(self, next_obs: torch.Tensor, with_entropy: bool = True) -> torch.Tensor:
+        """V_target(s') = min_i Q_target_i(s', a') - alpha log pi(a'|s'), a' ~ pi(.|s').
+
+        with_entropy=False drops the entropy term (the critic then values the reward alone; the actor's
+        loss keeps it), for tasks where entropy terms that outweigh the reward would make ending pay.
+        """
         a, logp = self.policy.sample(next_obs)
         q1, q2 = self.critic_target(next_obs, a)
-        return torch.minimum(q1, q2) - self.alpha * logp
+        q = torch.minimum(q1, q2)
+        return q - self.alpha * logp if with_entropy else q
 
     def critic_step(self, loss: torch.Tensor) -> None:
         self.critic_opt.zero_grad(set_to_none=True)
