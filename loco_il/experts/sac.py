@@ -32,6 +32,9 @@ A fixed bonus only moves the threshold: on G1 the temperature then rose to ~0.45
 policy keeps its entropy below the target) and the same happened at 90k steps. `backup_entropy=false` removes
 the cause: the critic's target leaves out the entropy term (Q sums the training reward only, so a fall always
 costs), while the actor's loss and the temperature keep theirs.
+`value_bounds=[lo, hi]` clips the bootstrapped value V(s') to what the training reward allows (rewards in
+[r_lo, r_hi] give [r_lo, r_hi] / (1 - gamma) without entropy terms), as LS-IQ clips its targets: on G1 the
+critic, fed joint velocities up to ~150, extrapolated to Q ~ 2300 where 300 is the most a return can be.
 """
 from __future__ import annotations
 
@@ -75,6 +78,7 @@ class SACConfig(CommonConfig):
     init_log_std: float | None = None      # initial log-std of the actor (before tanh); None: default init
     alive_bonus: float = 0.0               # added to every training reward (not to logged returns), see below
     backup_entropy: bool = True            # False: the critic's target leaves out -alpha log pi (see below)
+    value_bounds: Sequence[float] | None = None   # [lo, hi]: clip the bootstrapped next-state value (see below)
 
 
 def soft_td_target(rewards: torch.Tensor, absorbing: torch.Tensor, next_v: torch.Tensor,
@@ -221,6 +225,8 @@ class SACTrainer(ExpertTrainer):
         """One critic, actor, temperature and target step on a replay batch."""
         batch = self.replay.sample(self.cfg.batch_size, self.rng)
         next_v = self.sac.target_soft_value(batch["next_obs"], with_entropy=self.cfg.backup_entropy)
+        if self.cfg.value_bounds is not None:
+            next_v = next_v.clamp(*self.cfg.value_bounds)
         target = soft_td_target(batch["rewards"], batch["absorbing"], next_v, self.sac.gamma)
         q1, q2 = self.sac.critic(batch["obs"], batch["actions"])
         loss = twin_critic_loss(q1, q2, target)

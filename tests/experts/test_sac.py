@@ -206,3 +206,17 @@ def test_backup_entropy_false_drops_the_entropy_term_from_the_critic_target(tmp_
                         lambda obs, with_entropy=True: seen.append(with_entropy) or original(obs, with_entropy))
     tr.train()
     assert len(seen) == tr.n_updates > 0 and not any(seen)
+
+
+def test_value_bounds_clip_the_bootstrapped_value(tmp_path, monkeypatch):
+    import loco_il.experts.sac as sac_module
+    seen: list[torch.Tensor] = []
+    real_target = sac_module.soft_td_target
+    monkeypatch.setattr(sac_module, "soft_td_target",
+                        lambda r, ab, next_v, gamma: seen.append(next_v) or real_target(r, ab, next_v, gamma))
+    tr = SACTrainer(small_cfg(tmp_path, total_steps=110, value_bounds=[-1.0, 5.0]), log=quiet)
+    monkeypatch.setattr(tr.sac, "target_soft_value",
+                        lambda obs, with_entropy=True: torch.linspace(-1e3, 1e3, obs.shape[0]))
+    tr.train()
+    assert len(seen) == tr.n_updates > 0
+    assert all(v.min() == -1.0 and v.max() == 5.0 for v in seen)
