@@ -32,8 +32,9 @@ A fixed bonus only moves the threshold: on G1 the temperature then rose to ~0.45
 policy keeps its entropy below the target) and the same happened at 90k steps. `backup_entropy=false` removes
 the cause: the critic's target leaves out the entropy term (Q sums the training reward only, so a fall always
 costs), while the actor's loss and the temperature keep theirs.
-`value_bounds=[lo, hi]` clips the bootstrapped value V(s') to what the training reward allows (rewards in
-[r_lo, r_hi] give [r_lo, r_hi] / (1 - gamma) without entropy terms), as LS-IQ clips its targets: on G1 the
+`value_bounds=[lo, hi]` clips the bootstrapped value V(s') to what the training reward allows (without entropy
+terms, rewards in [r_lo, r_hi] give returns in [min(0, r_lo), max(0, r_hi)] / (1 - gamma)), as LS-IQ clips its
+targets: on G1 the
 critic, fed joint velocities up to ~150, extrapolated to Q ~ 2300 where 300 is the most a return can be.
 """
 from __future__ import annotations
@@ -125,6 +126,8 @@ class SACTrainer(ExpertTrainer):
         cfg = self.cfg
         self.policy = GaussianPolicy(self.obs_dim, self.act_dim, cfg.hidden, squash=True,
                                      activation=ACTIVATIONS[cfg.activation]).to(self.device)
+        if cfg.value_bounds is not None and not (len(cfg.value_bounds) == 2 and cfg.value_bounds[0] < cfg.value_bounds[1]):
+            raise ValueError(f"value_bounds={list(cfg.value_bounds)}: expected [lo, hi] with lo < hi")
         if cfg.init_action != "zero" or cfg.init_log_std is not None:
             init_actor_output(self.policy, self.initial_mean(), 0.0 if cfg.init_log_std is None else cfg.init_log_std)
         self.sac = SACCore(self.policy, self.obs_dim, self.act_dim, cfg.hidden, cfg.gamma, cfg.tau,
@@ -144,9 +147,9 @@ class SACTrainer(ExpertTrainer):
             return np.zeros(self.act_dim)
         if self.cfg.init_action != "home":
             raise ValueError(f"init_action={self.cfg.init_action!r}: expected 'zero' or 'home'")
-        if self.home_action is None:
+        if "home_action" not in self.body_extra:
             raise ValueError(f"init_action=home: {self.task_id} has no home action (only position-servo robots do)")
-        return self.home_action
+        return np.asarray(self.body_extra["home_action"], dtype=np.float64)
 
     def learner_state(self) -> dict[str, Any]:
         return {"policy": {k: v.detach().cpu() for k, v in self.policy.state_dict().items()},

@@ -136,9 +136,7 @@ class ExpertTrainer:
         self.obs_dim = probe.obs_spec.dim
         self.act_dim = probe.info.action_space.shape[0]
         self.horizon = probe.info.horizon
-        # position-servo robots: the action that commands their standing keyframe (None for other bodies)
-        extra = probe.body.extra
-        self.home_action = np.asarray(extra["home_action"], dtype=np.float64) if "home_action" in extra else None
+        self.body_extra = probe.body.extra   # per-body facts (e.g. a servo robot's "home_action"), computed lazily
         probe.stop()
         self.out_dir = Path(cfg.out_dir)
         self.out_dir.mkdir(parents=True, exist_ok=True)

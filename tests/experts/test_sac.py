@@ -174,10 +174,11 @@ def test_init_actor_output_sets_mean_and_spread_for_any_observation():
 
 def test_init_action_home_starts_from_the_standing_servo_targets(tmp_path):
     tr = SACTrainer(small_cfg(tmp_path, task="BoosterT1.walk", init_action="home", init_log_std=-3.0), log=quiet)
-    assert tr.home_action is not None and np.abs(tr.home_action).max() > 0.1
+    home = np.asarray(tr.body_extra["home_action"])
+    assert np.abs(home).max() > 0.1
     expert = tr.make_expert()
     obs = np.random.default_rng(0).normal(size=(8, tr.obs_dim))
-    np.testing.assert_allclose(expert(obs), np.tile(np.clip(tr.home_action, -0.97, 0.97), (8, 1)), atol=0.05)
+    np.testing.assert_allclose(expert(obs), np.tile(np.clip(home, -0.97, 0.97), (8, 1)), atol=0.05)
     default = SACTrainer(small_cfg(tmp_path / "zero", task="BoosterT1.walk"), log=quiet)
     assert np.abs(default.make_expert()(obs)).max() < 0.5           # the default init stays near zero
     with pytest.raises(ValueError, match="no home action"):
@@ -220,3 +221,5 @@ def test_value_bounds_clip_the_bootstrapped_value(tmp_path, monkeypatch):
     tr.train()
     assert len(seen) == tr.n_updates > 0
     assert all(v.min() == -1.0 and v.max() == 5.0 for v in seen)
+    with pytest.raises(ValueError, match="lo < hi"):
+        SACTrainer(small_cfg(tmp_path / "bad", value_bounds=[5.0, -1.0]), log=quiet)
