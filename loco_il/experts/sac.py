@@ -103,18 +103,21 @@ def refill_policies(folder: str) -> list[ExpertPolicy]:
     return [load_expert(f) for f in files]
 
 
-def init_actor_output(policy: GaussianPolicy, mean_action: np.ndarray, log_std: float) -> None:
-    """Start a tanh-squashed actor near `mean_action` with std exp(log_std) before tanh.
+def init_actor_output(policy: GaussianPolicy, mean_action: np.ndarray, log_std: float | None) -> None:
+    """Start a tanh-squashed actor near `mean_action` (and, unless `log_std` is None, std exp(log_std) before tanh).
 
-    The last layer's weights are scaled down (x0.01) so that its biases decide the initial output for every
-    observation: bias = atanh(mean_action) for the mean half, `log_std` for the log-std half.
+    The last layer's rows of each half set here are scaled down (x0.01) so that their biases decide the initial
+    output for every observation: bias = atanh(mean_action) for the mean half, `log_std` for the log-std half.
     """
     last = [m for m in policy.net.modules() if isinstance(m, torch.nn.Linear)][-1]
     act = np.clip(np.asarray(mean_action, dtype=np.float64), -0.97, 0.97)   # atanh stays finite
+    n = policy.act_dim
     with torch.no_grad():
-        last.weight.mul_(0.01)
-        last.bias[: policy.act_dim] = torch.as_tensor(np.arctanh(act), dtype=last.bias.dtype)
-        last.bias[policy.act_dim:] = float(log_std)
+        last.weight[:n].mul_(0.01)
+        last.bias[:n] = torch.as_tensor(np.arctanh(act), dtype=last.bias.dtype)
+        if log_std is not None:
+            last.weight[n:].mul_(0.01)
+            last.bias[n:] = float(log_std)
 
 
 class SACTrainer(ExpertTrainer):
@@ -129,7 +132,7 @@ class SACTrainer(ExpertTrainer):
         if cfg.value_bounds is not None and not (len(cfg.value_bounds) == 2 and cfg.value_bounds[0] < cfg.value_bounds[1]):
             raise ValueError(f"value_bounds={list(cfg.value_bounds)}: expected [lo, hi] with lo < hi")
         if cfg.init_action != "zero" or cfg.init_log_std is not None:
-            init_actor_output(self.policy, self.initial_mean(), 0.0 if cfg.init_log_std is None else cfg.init_log_std)
+            init_actor_output(self.policy, self.initial_mean(), cfg.init_log_std)
         self.sac = SACCore(self.policy, self.obs_dim, self.act_dim, cfg.hidden, cfg.gamma, cfg.tau,
                            cfg.actor_lr, cfg.critic_lr, cfg.alpha_lr, cfg.init_alpha, True, cfg.target_entropy,
                            None, self.device)

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 import torch
 
+from loco_il.algorithms.common.networks import GaussianPolicy
 from loco_il.datasets.baselines import load_baselines
 from loco_il.experts import load_expert
-from loco_il.algorithms.common.networks import GaussianPolicy
 from loco_il.experts.sac import SACTrainer, init_actor_output, soft_td_target, twin_critic_loss
 
 TASK = "InvertedPendulum.balance.perfect"
@@ -170,6 +170,12 @@ def test_init_actor_output_sets_mean_and_spread_for_any_observation():
     mean, log_std = policy._mean_log_std(obs)
     np.testing.assert_allclose(torch.tanh(mean).detach().numpy(), np.tile([0.5, -0.2, 0.97], (64, 1)), atol=0.02)
     np.testing.assert_allclose(log_std.detach().numpy(), -3.0, atol=0.05)
+    torch.manual_seed(0)
+    untouched = GaussianPolicy(5, 3, (16, 16), squash=True)
+    init_actor_output(untouched, target, log_std=None)              # the log-std half keeps its initialization
+    torch.manual_seed(0)
+    fresh = GaussianPolicy(5, 3, (16, 16), squash=True)
+    torch.testing.assert_close(untouched._mean_log_std(obs)[1], fresh._mean_log_std(obs)[1])
 
 
 def test_init_action_home_starts_from_the_standing_servo_targets(tmp_path):
