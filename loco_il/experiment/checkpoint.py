@@ -37,6 +37,9 @@ CHECKPOINT_NAME = "checkpoint.pt"
 RESUMABLE_KEYS = frozenset({"resume", "stop_after_steps", "logger", "eval", "n_steps", "checkpoint_every",
                             "checkpoint_replay",
                             "device", "torch_threads", "results_dir", "per_algo"})
+#: config keys added after runs may have been checkpointed, with the value that behaves as those runs did:
+#: a checkpoint without the key resumes when the new config holds that value
+ADDED_KEYS: dict[str, Any] = {"init_state": "default"}
 
 
 class CheckpointError(RuntimeError):
@@ -127,8 +130,8 @@ def config_differences(old: Mapping[str, Any], new: Mapping[str, Any], prefix: s
     for key in sorted(set(old) | set(new)):
         if not prefix and key in RESUMABLE_KEYS:
             continue
-        a, b = old.get(key, "<missing>"), new.get(key, "<missing>")
         name = f"{prefix}{key}"
+        a, b = old.get(key, ADDED_KEYS.get(name, "<missing>")), new.get(key, "<missing>")
         if isinstance(a, Mapping) and isinstance(b, Mapping):
             diffs.extend(config_differences(a, b, name + "."))
         elif a != b:
@@ -137,4 +140,4 @@ def config_differences(old: Mapping[str, Any], new: Mapping[str, Any], prefix: s
 
 
 __all__ = ["CHECKPOINT_NAME", "CheckpointError", "save_checkpoint", "load_checkpoint", "restore",
-           "config_differences", "RESUMABLE_KEYS"]
+           "config_differences", "RESUMABLE_KEYS", "ADDED_KEYS"]

@@ -97,14 +97,19 @@ def apply_per_algo(cfg: dict, cli_overrides: Sequence[str] = ()) -> dict:
 
 
 # ----------------------------------------------------------------------------- datasets
+def dataset_kwargs(dcfg: Mapping[str, Any]) -> dict[str, Any]:
+    """Keyword arguments of `create_dataset` (besides env and split) from the config's `dataset` group."""
+    kwargs = {k: dcfg[k] for k in ("n_episodes", "expert_path") if dcfg.get(k) is not None}
+    kwargs.update({k: v for k, v in (dcfg.get("provider_kwargs") or {}).items()})
+    return dict(n_trajectories=dcfg.get("n_trajectories"), portion=tuple(dcfg.get("portion") or (0.0, 0.75)),
+                seed=int(dcfg.get("split_seed", 0)), generation_seed=int(dcfg.get("generation_seed", 0)),
+                verbose=bool(dcfg.get("verbose", True)), **kwargs)
+
+
 def load_datasets(env: Any, dcfg: Mapping[str, Any]):
     """(train, test) expert data of `env`'s Task-ID; test is None when the split leaves no test episodes."""
     from loco_il.datasets import create_dataset
-    kwargs = {k: dcfg[k] for k in ("n_episodes", "expert_path") if dcfg.get(k) is not None}
-    kwargs.update({k: v for k, v in (dcfg.get("provider_kwargs") or {}).items()})
-    common = dict(n_trajectories=dcfg.get("n_trajectories"), portion=tuple(dcfg.get("portion") or (0.0, 0.75)),
-                  seed=int(dcfg.get("split_seed", 0)), generation_seed=int(dcfg.get("generation_seed", 0)),
-                  verbose=bool(dcfg.get("verbose", True)), **kwargs)
+    common = dataset_kwargs(dcfg)
     train = create_dataset(env, split="train", **common)
     portion = common["portion"]
     test = None
@@ -114,6 +119,33 @@ def load_datasets(env: Any, dcfg: Mapping[str, Any]):
         except Exception:  # noqa: BLE001 - a pool too small for a test split: similarity uses train
             test = None
     return train, test
+
+
+INIT_STATES = ("default", "dataset")
+
+
+def check_init_state(init_state: str) -> str:
+    if init_state not in INIT_STATES:
+        raise ExperimentConfigError(f"init_state={init_state!r}: expected one of {', '.join(INIT_STATES)}")
+    return init_state
+
+
+def training_start_sampler(env: Any, init_state: str, dcfg: Mapping[str, Any], train: Any):
+    """The training env's `init_state_sampler` for `init_state` (None: the body's own start state).
+
+    "dataset": every training episode starts from a uniformly drawn state of the expert train split, as
+    LocoMuJoCo does; states are rebuilt from full observations (a `.pomdp` task's masked train split is
+    loaded again with `full_obs=True`). Evaluation episodes keep the body's own start state, so that scores
+    stay comparable with runs that start there.
+    """
+    from loco_il.datasets import create_dataset
+    from loco_il.datasets.providers import dataset_init_state_sampler
+    if check_init_state(init_state) == "default":
+        return None
+    full = train
+    if train.obs_dim != env.full_obs_spec.dim:
+        full = create_dataset(env, split="train", full_obs=True, **{**dataset_kwargs(dcfg), "verbose": False})
+    return dataset_init_state_sampler(env=env, trajs=full)
 
 
 def dataset_type_of(task_id: str) -> str:
@@ -194,6 +226,7 @@ class Runner:
         try:   # fail before anything slow
             cls = get_algorithm(self.algo_cfg["name"])
             cls.check_dataset_type(dataset_type_of(self.task_id))
+            init_state = check_init_state(str(c.get("init_state") or "default"))
         except (KeyError, ValueError) as exc:
             raise ExperimentConfigError(str(exc.args[0]) if exc.args else str(exc)) from exc
         self.offline = factory.is_offline(cls, self.algo_cfg)
@@ -213,6 +246,7 @@ class Runner:
         eval_env = make(self.task_id, seed=self.seed + 1)
         train, test = load_datasets(env, c.get("dataset") or {})
         self.train_data, self.test_data = train, test
+        env.init_state_sampler = training_start_sampler(env, init_state, c.get("dataset") or {}, train)
         seed_everything(self.seed)   # the same initial weights whether the dataset was generated or cached
         agent = factory.build_agent(self.algo_cfg["name"], env.info, self.algo_cfg, seed=self.seed,
                                     device=str(c.get("device") or "cpu"))
@@ -241,6 +275,8 @@ class Runner:
         logger.write(f"[loco_il] {self.name} on {self.task_id} (seed {self.seed}): {budget} "
                      f"{'gradient' if self.offline else 'env'} steps, {train.n_trajectories} expert episodes "
                      f"({train.n_transitions} transitions); run dir {self.run_dir}")
+        if env.init_state_sampler is not None:
+            logger.write("[loco_il] training episodes start from states of the expert train split (init_state=dataset)")
         self.agent, self.env, self.eval_env, self.logger = agent, env, eval_env, logger
         clock = Stopwatch(wall)
         stop_after = c.get("stop_after_steps")
