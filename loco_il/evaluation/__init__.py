@@ -49,9 +49,10 @@ def evaluate_policy(env: Any, policy: Callable[[np.ndarray], np.ndarray], episod
                 break
         returns.append(total)
         lengths.append(t)
+    outcomes = {(round(r, 9), n) for r, n in zip(returns, lengths)}
     out = {"returns": returns, "lengths": lengths, "episodes": int(episodes), "eval_seed": int(seed),
            "return_mean": float(np.mean(returns)), "return_std": float(np.std(returns)),
-           "length_mean": float(np.mean(lengths))}
+           "length_mean": float(np.mean(lengths)), "distinct_episodes": len(outcomes)}
     if collect_obs:
         out["obs"] = np.asarray(observations)
     return out
@@ -73,6 +74,15 @@ def evaluate_agent(agent: Any, env: Any, episodes: int, seed: int = 1000, determ
         agent.deterministic = previous
         if module is not None and was_training:
             module.train()
+
+
+def identical_episodes_note(result: Mapping[str, Any]) -> str | None:
+    """A warning when every evaluation episode had the same outcome (deterministic start and policy)."""
+    n = int(result.get("episodes") or 0)
+    if n > 1 and result.get("distinct_episodes") == 1:
+        return (f"all {n} evaluation episodes identical (the env starts without reset noise and the policy is "
+                f"deterministic): the std over episodes is 0 by construction; compare over training seeds")
+    return None
 
 
 # ----------------------------------------------------------------------------- scores
@@ -161,7 +171,8 @@ def format_eval_table(results: Sequence[Mapping[str, Any]]) -> str:
                                         ret, "n/a" if r.get("normalized_score") is None else f"{r['normalized_score']:.3f}",
                                         _fmt(sim.get("nn_distance"), 3),
                                         _fmt(sim.get("mmd"), 3)]) + " |")
-    notes = sorted({r["normalized_score_note"] for r in results if r.get("normalized_score_note")})
+    notes = sorted({r["normalized_score_note"] for r in results if r.get("normalized_score_note")}
+                   | {note for note in map(identical_episodes_note, results) if note})
     return "\n".join(lines + [f"\nNote: {n}" for n in notes])
 
 
@@ -262,5 +273,5 @@ def write_json(path: str | Path, data: Mapping[str, Any]) -> None:
         fh.write("\n")
 
 
-__all__ = ["evaluate_policy", "evaluate_agent", "normalized", "trajectory_similarity", "nn_distance", "mmd",
+__all__ = ["evaluate_policy", "evaluate_agent", "identical_episodes_note", "normalized", "trajectory_similarity", "nn_distance", "mmd",
            "format_eval_table", "load_run_config", "load_run_agent", "evaluate_run", "record_run", "write_json"]

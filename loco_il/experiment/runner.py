@@ -302,7 +302,9 @@ class Runner:
                     logger.write(f"[loco_il] step {step}: eval return {row['eval_return_mean']:.2f} ± "
                                  f"{row['eval_return_std']:.2f}" + (f", normalized {row['normalized_score']:.3f}"
                                                                     if row.get("normalized_score") is not None
-                                                                    else ""))
+                                                                    else "")
+                                 + (" (all episodes identical)" if row["eval_distinct_episodes"] == 1
+                                    and row["eval_episodes"] > 1 else ""))
                 if step % ckpt_every == 0 or step == budget:
                     save_checkpoint(self.run_dir / CHECKPOINT_NAME, agent=agent, env=env, counters=counters,
                                     wall_time=clock(), config=c, wandb_id=logger.wandb_id,
@@ -375,7 +377,8 @@ class Runner:
                "episodes": counters["episodes"], "wall_time": round(wall, 3), "steps_per_s": round(sps, 2),
                "train_return": float(np.mean(returns)) if returns else None,
                "eval_return_mean": res["return_mean"], "eval_return_std": res["return_std"],
-               "eval_episodes": res["episodes"], "eval_length_mean": res["length_mean"], "normalized_score": score}
+               "eval_episodes": res["episodes"], "eval_length_mean": res["length_mean"],
+               "eval_distinct_episodes": res["distinct_episodes"], "normalized_score": score}
         row.update({f"fit/{k}": v for k, v in fit_info.items()})
         window["returns"] = []
         self.logger.progress(0, eval_return=res["return_mean"], steps_per_s=sps)
