@@ -2,7 +2,8 @@
 # The imitation-learning runs at the papers' budgets on Hopper.run.perfect, through train.py, so that they
 # checkpoint and resume: re-running this script (or one of its lines) continues every run from its last
 # checkpoint, so a run can span several sittings. Results: one row per evaluation in each run dir's log.csv;
-# `python -m loco_il.evaluation.leaderboard $RESULTS` prints the table.
+# `python -m loco_il.evaluation.progress $RESULTS` shows where every run stands (last evaluation, hours
+# left); `python -m loco_il.evaluation.leaderboard $RESULTS` tabulates the finished ones.
 #
 #   bash benchmarks/il_long_runs.sh              # every run below, one after the other
 #   bash benchmarks/il_long_runs.sh lsiq         # some of them

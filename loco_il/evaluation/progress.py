@@ -1,0 +1,91 @@
+"""Where long runs stand: `python -m loco_il.evaluation.progress runs/`.
+
+The leaderboard only counts finished runs (those with an `eval.json`). Runs at the papers' budgets take
+many sittings on a small machine (they resume from `checkpoint.pt`), so this prints one row per run dir
+below the folder, finished or not: its budget, the last evaluation logged in `log.csv` (step, return,
+normalized score), the training speed of the last interval and, for unfinished runs, the wall time the
+rest of the budget needs at that speed. It reads only `config.yaml` and `log.csv` (no checkpoint), so it
+is instant and safe to run while the runs are training.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Any
+
+from loco_il.experiment.logging import read_csv
+
+HEADER = ("task", "algorithm", "seed", "last eval step", "budget", "done %", "return", "normalized",
+          "steps/s", "rest (h)", "state")
+
+
+def run_progress(run_dir: str | Path) -> dict[str, Any] | None:
+    """One run dir's progress, or None when the folder is not a `train.py` run dir."""
+    import yaml
+    run_dir = Path(run_dir)
+    cfg_path = run_dir / "config.yaml"
+    if not cfg_path.is_file():
+        return None
+    cfg = yaml.safe_load(cfg_path.read_text()) or {}
+    rows = read_csv(run_dir / "log.csv")
+    last = rows[-1] if rows else {}
+    budget = int(cfg.get("n_steps") or 0)
+    step = int(last.get("step") or 0)
+    speed = last.get("steps_per_s")
+    finished = (run_dir / "eval.json").is_file()
+    rest_h = None if finished or not speed else max(budget - step, 0) / speed / 3600.0
+    return {"run_dir": str(run_dir), "task": cfg.get("task_id", "?"), "algorithm": cfg.get("name", "?"),
+            "seed": cfg.get("seed"), "step": step, "budget": budget,
+            "done": step / budget if budget else None, "return": last.get("eval_return_mean"),
+            "normalized": last.get("normalized_score"), "steps_per_s": speed, "rest_hours": rest_h,
+            "state": "finished" if finished else ("no evaluation yet" if not rows else "in progress")}
+
+
+def collect_progress(root: str | Path) -> list[dict[str, Any]]:
+    """Every run dir below `root` (a folder holding `config.yaml`), sorted by task, algorithm, seed.
+
+    Hidden folders are skipped: Hydra keeps its own unresolved copy of the config in `<run dir>/.hydra/`.
+    """
+    root = Path(root)
+    found = (run_progress(p.parent) for p in root.rglob("config.yaml")
+             if not any(part.startswith(".") for part in p.relative_to(root).parts))
+    rows = [r for r in found if r is not None]
+    return sorted(rows, key=lambda r: (r["task"], str(r["algorithm"]), str(r["seed"])))
+
+
+def _cell(x: Any, fmt: str) -> str:
+    return "n/a" if x is None else format(x, fmt)
+
+
+def to_markdown(rows: list[dict[str, Any]]) -> str:
+    lines = ["| " + " | ".join(HEADER) + " |", "|" + "|".join("---" for _ in HEADER) + "|"]
+    for r in rows:
+        cells = [r["task"], str(r["algorithm"]), str(r["seed"]), str(r["step"]), str(r["budget"]),
+                 _cell(None if r["done"] is None else 100 * r["done"], ".1f"), _cell(r["return"], ".1f"),
+                 _cell(r["normalized"], ".3f"), _cell(r["steps_per_s"], ".1f"), _cell(r["rest_hours"], ".1f"),
+                 r["state"]]
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m loco_il.evaluation.progress",
+                                     description=__doc__.splitlines()[0])
+    parser.add_argument("root", help="folder searched (recursively) for train.py run dirs, e.g. runs/")
+    args = parser.parse_args(argv)
+    if not Path(args.root).is_dir():
+        print(f"error: {args.root} is not a folder", file=sys.stderr)
+        return 2
+    rows = collect_progress(args.root)
+    if not rows:
+        print(f"no train.py run dirs (folders with config.yaml) below {args.root}", file=sys.stderr)
+        return 1
+    print(to_markdown(rows))
+    print("\n'rest (h)': the rest of the budget at the last interval's speed; the checkpoint may be up to one "
+          "evaluation interval ahead of 'last eval step'.")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

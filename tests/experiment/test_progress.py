@@ -1,0 +1,55 @@
+"""`python -m loco_il.evaluation.progress`: where finished and unfinished runs stand, from config.yaml + log.csv."""
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import yaml
+
+from loco_il.evaluation import progress
+from loco_il.experiment.logging import CSV_COLUMNS
+
+
+def make_run(root: Path, algo: str, budget: int, rows: list[tuple[int, float, float, float]],
+             finished: bool = False) -> Path:
+    """A run dir as train.py leaves it; rows = (step, steps/s, eval return, normalized score)."""
+    run = root / "Hopper.run.perfect" / algo / "seed0"
+    (run / ".hydra").mkdir(parents=True)
+    cfg = {"task_id": "Hopper.run.perfect", "name": algo, "seed": 0, "n_steps": budget}
+    (run / "config.yaml").write_text(yaml.safe_dump(cfg))
+    (run / ".hydra" / "config.yaml").write_text("task_id: ${hydra:runtime.choices.task}\nn_steps: 1\n")
+    with open(run / "log.csv", "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=CSV_COLUMNS, extrasaction="ignore")
+        w.writeheader()
+        for step, sps, ret, norm in rows:
+            w.writerow({"step": step, "env_steps": step, "steps_per_s": sps, "eval_return_mean": ret,
+                        "normalized_score": norm})
+    if finished:
+        (run / "eval.json").write_text(json.dumps({"return_mean": rows[-1][2]}))
+    return run
+
+
+def test_progress_of_finished_unfinished_and_fresh_runs(tmp_path, capsys):
+    make_run(tmp_path, "lsiq", 1_500_000, [(50_000, 40.0, 900.0, 0.27), (100_000, 36.0, 1200.0, 0.37)])
+    make_run(tmp_path, "gail", 100_000, [(100_000, 1000.0, 3000.0, 0.93)], finished=True)
+    make_run(tmp_path, "sqil", 1_000_000, [])
+    rows = {r["algorithm"]: r for r in progress.collect_progress(tmp_path)}
+    assert set(rows) == {"lsiq", "gail", "sqil"}           # Hydra's unresolved .hydra/config.yaml is not a run
+    lsiq = rows["lsiq"]
+    assert (lsiq["step"], lsiq["return"], lsiq["normalized"], lsiq["state"]) == (100_000, 1200.0, 0.37, "in progress")
+    assert abs(lsiq["done"] - 100_000 / 1_500_000) < 1e-12
+    assert abs(lsiq["rest_hours"] - 1_400_000 / 36.0 / 3600.0) < 1e-9   # the last interval's speed
+    assert rows["gail"]["state"] == "finished" and rows["gail"]["rest_hours"] is None
+    assert rows["sqil"]["state"] == "no evaluation yet" and rows["sqil"]["step"] == 0
+
+    assert progress.main([str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "| Hopper.run.perfect | lsiq | 0 | 100000 | 1500000 | 6.7 | 1200.0 | 0.370 | 36.0 | 10.8 | in progress |" in out
+
+
+def test_progress_cli_errors(tmp_path, capsys):
+    assert progress.main([str(tmp_path / "missing")]) == 2
+    assert "is not a folder" in capsys.readouterr().err
+    assert progress.main([str(tmp_path)]) == 1
+    assert "no train.py run dirs" in capsys.readouterr().err
