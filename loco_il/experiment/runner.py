@@ -34,14 +34,23 @@ import torch
 from loco_il.experiment.checkpoint import (CHECKPOINT_NAME, CheckpointError, config_differences, load_checkpoint,
                                            restore, save_checkpoint)
 from loco_il.experiment.logging import RunLogger, Stopwatch
+from loco_il.utils.signals import stop_requests
 
 RUN_FILES = ("checkpoint.pt", "final_agent.pt", "eval.json", "log.csv", "log.jsonl")
 #: exit status of `train.py` when `stop_after_steps` stopped a run early (as if it had been killed)
 STOPPED_EXIT_CODE = 3
 
 
+#: exit status of `train.py` when SIGINT/SIGTERM stopped a run (after writing a checkpoint)
+SIGNAL_EXIT_CODE = 130
+
+
 class StopRequested(Exception):
     """`stop_after_steps` was reached: the run stops like a killed one (no checkpoint of the last chunk)."""
+
+
+class StoppedBySignal(StopRequested):
+    """SIGINT/SIGTERM arrived: the run stopped after its current chunk, with a checkpoint."""
 
 
 class ExperimentConfigError(ValueError):
@@ -280,47 +289,55 @@ class Runner:
         self.agent, self.env, self.eval_env, self.logger = agent, env, eval_env, logger
         clock = Stopwatch(wall)
         stop_after = c.get("stop_after_steps")
-        try:
-            core = None if self.offline else self._make_core(window, counters)
-            last_t, last_step = clock(), step
-            while step < budget:
-                nxt_eval = (step // eval_every + 1) * eval_every
-                nxt_ckpt = (step // ckpt_every + 1) * ckpt_every
-                n = min(nxt_eval, nxt_ckpt, budget) - step
-                fit_info = self._train_chunk(agent, core, n, unit)
-                step += n
-                counters["step"] = step
-                if not self.offline:
-                    counters["env_steps"] += n
-                if step % eval_every == 0 or step == budget:
-                    now = clock()
-                    row = self._evaluate_row(counters, now, (step - last_step) / max(now - last_t, 1e-9),
-                                             window, fit_info)
-                    last_t, last_step = clock(), step   # steps/s without the evaluation's time
-                    counters["n_evals"] += 1
-                    logger.log(row)
-                    logger.write(f"[loco_il] step {step}: eval return {row['eval_return_mean']:.2f} ± "
-                                 f"{row['eval_return_std']:.2f}" + (f", normalized {row['normalized_score']:.3f}"
-                                                                    if row.get("normalized_score") is not None
-                                                                    else "")
-                                 + (" (all episodes identical)" if row["eval_distinct_episodes"] == 1
-                                    and row["eval_episodes"] > 1 else ""))
-                if step % ckpt_every == 0 or step == budget:
-                    save_checkpoint(self.run_dir / CHECKPOINT_NAME, agent=agent, env=env, counters=counters,
-                                    wall_time=clock(), config=c, wandb_id=logger.wandb_id,
-                                    extra={"train_returns": window["returns"]},
-                                    include_replay=bool(c.get("checkpoint_replay", True)))
-                if stop_after is not None and step >= int(stop_after) and step < budget:
-                    raise StopRequested(f"stop_after_steps={stop_after}: stopped at step {step}/{budget} "
-                                        f"(re-run the same command to resume)")
-            result = self._final(agent, eval_env, counters, clock())
-        finally:
-            logger.close()
-            env.stop()
-            eval_env.stop()
-        save_checkpoint(self.run_dir / CHECKPOINT_NAME, agent=agent, env=env, counters=counters,
-                        wall_time=clock(), config=c, wandb_id=logger.wandb_id, finished=True,
-                        include_replay=bool(c.get("checkpoint_replay", True)))
+
+        def checkpoint(finished: bool = False) -> None:
+            save_checkpoint(self.run_dir / CHECKPOINT_NAME, agent=agent, env=env, counters=counters,
+                            wall_time=clock(), config=c, wandb_id=logger.wandb_id, finished=finished,
+                            extra=None if finished else {"train_returns": window["returns"]},
+                            include_replay=bool(c.get("checkpoint_replay", True)))
+
+        with stop_requests(lambda msg: logger.write(f"[loco_il] {msg}")) as stop:
+            try:
+                core = None if self.offline else self._make_core(window, counters)
+                last_t, last_step = clock(), step
+                while step < budget:
+                    nxt_eval = (step // eval_every + 1) * eval_every
+                    nxt_ckpt = (step // ckpt_every + 1) * ckpt_every
+                    n = min(nxt_eval, nxt_ckpt, budget) - step
+                    fit_info = self._train_chunk(agent, core, n, unit)
+                    step += n
+                    counters["step"] = step
+                    if not self.offline:
+                        counters["env_steps"] += n
+                    if step % eval_every == 0 or step == budget:
+                        now = clock()
+                        row = self._evaluate_row(counters, now, (step - last_step) / max(now - last_t, 1e-9),
+                                                 window, fit_info)
+                        last_t, last_step = clock(), step   # steps/s without the evaluation's time
+                        counters["n_evals"] += 1
+                        logger.log(row)
+                        logger.write(f"[loco_il] step {step}: eval return {row['eval_return_mean']:.2f} ± "
+                                     f"{row['eval_return_std']:.2f}" + (f", normalized {row['normalized_score']:.3f}"
+                                                                        if row.get("normalized_score") is not None
+                                                                        else "")
+                                     + (" (all episodes identical)" if row["eval_distinct_episodes"] == 1
+                                        and row["eval_episodes"] > 1 else ""))
+                    if step % ckpt_every == 0 or step == budget:
+                        checkpoint()
+                    if stop.signal is not None and step < budget:
+                        if step % ckpt_every:   # this chunk ended at an evaluation: checkpoint it as well
+                            checkpoint()
+                        raise StoppedBySignal(f"stopped by {stop.signal} at step {step}/{budget}, checkpoint "
+                                              f"saved (re-run the same command to resume)")
+                    if stop_after is not None and step >= int(stop_after) and step < budget:
+                        raise StopRequested(f"stop_after_steps={stop_after}: stopped at step {step}/{budget} "
+                                            f"(re-run the same command to resume)")
+                result = self._final(agent, eval_env, counters, clock())
+            finally:
+                logger.close()
+                env.stop()
+                eval_env.stop()
+        checkpoint(finished=True)
         self._print_table(result)
         return result
 
@@ -441,6 +458,9 @@ def main_with_exit_codes(cfg: Any, run_dir: str | Path, cli_overrides: Sequence[
     from loco_il.datasets.trajectory import DatasetError
     try:
         run(cfg, run_dir, cli_overrides)
+    except StoppedBySignal as exc:
+        print(f"[loco_il] {exc}", file=sys.stderr, flush=True)
+        return SIGNAL_EXIT_CODE
     except StopRequested as exc:
         print(f"[loco_il] {exc}", file=sys.stderr, flush=True)
         return STOPPED_EXIT_CODE
@@ -450,4 +470,5 @@ def main_with_exit_codes(cfg: Any, run_dir: str | Path, cli_overrides: Sequence[
     return 0
 
 
-__all__ = ["run", "Runner", "load_datasets", "StopRequested", "ExperimentConfigError", "STOPPED_EXIT_CODE", "main_with_exit_codes"]
+__all__ = ["run", "Runner", "load_datasets", "StopRequested", "StoppedBySignal", "ExperimentConfigError",
+           "STOPPED_EXIT_CODE", "SIGNAL_EXIT_CODE", "main_with_exit_codes"]

@@ -23,18 +23,17 @@ import dataclasses
 import contextlib
 import json
 import math
-import signal
-import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Iterator, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 import torch
 
 from loco_il.experts.policy import ExpertPolicy
 from loco_il.utils.atomic import atomic_torch_save, atomic_write
+from loco_il.utils.signals import stop_requests
 
 CHECKPOINT_FORMAT = "loco_il.experts.checkpoint/v1"
 
@@ -318,29 +317,6 @@ class ExpertTrainer:
     def _session_time(self) -> float:
         return time.time() - self._t0 if hasattr(self, "_t0") else 0.0
 
-    @contextlib.contextmanager
-    def _stop_on_signals(self) -> Iterator[None]:
-        """While training, SIGINT/SIGTERM only ask the loop to stop after the current iteration (then it
-        saves a checkpoint); a second SIGINT raises KeyboardInterrupt at once. Only the main thread can
-        install handlers; elsewhere the signals keep their usual effect."""
-        if threading.current_thread() is not threading.main_thread():
-            yield
-            return
-
-        def request_stop(signum: int, _frame: Any) -> None:
-            if signum == signal.SIGINT and self._stop_signal is not None:
-                raise KeyboardInterrupt
-            self._stop_signal = signal.Signals(signum).name
-            self.log(f"[{self.cfg.algo}] {self._stop_signal}: stopping after this iteration "
-                     "(Ctrl-C again to stop at once, without a checkpoint)")
-
-        previous = {sig: signal.signal(sig, request_stop) for sig in (signal.SIGINT, signal.SIGTERM)}
-        try:
-            yield
-        finally:
-            for sig, handler in previous.items():
-                signal.signal(sig, handler)
-
     def train(self, callback: Callable[["ExpertTrainer"], None] | None = None) -> dict[str, Any]:
         """Train until `cfg.total_steps`; returns the final summary (also printed as the last JSON line).
 
@@ -357,9 +333,8 @@ class ExpertTrainer:
         self.log(f"{tag} {self.task_id}: obs {self.obs_dim}, act {self.act_dim}, {self.describe()}, "
                  f"total {cfg.total_steps} steps -> {self.out_dir}")
         final_ev: dict[str, Any] | None = None
-        self._stop_signal: str | None = None
         with contextlib.ExitStack() as stack:
-            stack.enter_context(self._stop_on_signals())
+            stop = stack.enter_context(stop_requests(lambda msg: self.log(f"{tag} {msg}")))
             stack.callback(self.close)
             if self.step < cfg.total_steps:
                 self._maybe_snapshot()
@@ -383,11 +358,11 @@ class ExpertTrainer:
                     self.save_checkpoint()
                 if callback is not None:
                     callback(self)
-                if self._stop_signal is not None:
+                if stop.signal is not None:
                     break
-            if self._stop_signal is not None:
+            if stop.signal is not None:
                 self.save_checkpoint()
-                self.log(f"{tag} stopped by {self._stop_signal} at step {self.step}: checkpoint saved; "
+                self.log(f"{tag} stopped by {stop.signal} at step {self.step}: checkpoint saved; "
                          "run the same command again to resume")
                 final_ev = self.last_eval
             else:
@@ -403,7 +378,7 @@ class ExpertTrainer:
         if final_ev is not None:
             final.update(eval_return_mean=round(final_ev["return_mean"], 2),
                          eval_return_std=round(final_ev["return_std"], 2), eval_episodes=final_ev["episodes"])
-        summary = {"task_id": self.task_id, "algo": cfg.algo, "stopped_by_signal": self._stop_signal, **final,
+        summary = {"task_id": self.task_id, "algo": cfg.algo, "stopped_by_signal": stop.signal, **final,
                    "best_eval_return": round(self.best_eval, 2), "env_steps": self.step,
                    "wall_time_s": round(self.wall_time + session, 1), "session_wall_time_s": round(session, 1),
                    "steps_per_s": round((self.step - start_step) / max(session, 1e-9), 1),

@@ -169,6 +169,35 @@ def test_killed_run_resumes(env_vars, tmp_path):
     assert steps == [500, 1000, 1500, 2000]
 
 
+def test_sigterm_stops_with_a_checkpoint_and_resumes(env_vars, tmp_path):
+    """SIGTERM after the first evaluation: the run ends after its current chunk with a checkpoint at that
+    step (an evaluation step, not only a checkpoint_every multiple), exit status 130; the same command
+    finishes it."""
+    results = tmp_path / "results"
+    args = ["algo=bc", "n_steps=20000", "eval.every=500", "checkpoint_every=10000"]
+    cmd = [sys.executable, "train.py", f"results_dir={results}", *FAST, *args]
+    proc = subprocess.Popen(cmd, cwd=ROOT, env=env_vars, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    log = run_dir(results) / "log.csv"
+    try:
+        deadline = time.time() + 240
+        while not (log.exists() and csv_rows(log)) and proc.poll() is None and time.time() < deadline:
+            time.sleep(0.05)
+        assert proc.poll() is None, "the run ended before it could be stopped"
+        proc.send_signal(signal.SIGTERM)
+        out, err = proc.communicate(timeout=240)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 130, err[-2000:]
+    at = torch.load(run_dir(results) / "checkpoint.pt", weights_only=False)["counters"]["step"]
+    assert 0 < at < 20000 and at % 500 == 0
+    assert f"stopped by SIGTERM at step {at}/20000, checkpoint saved" in err
+    assert int(csv_rows(log)[-1]["step"]) == at and not (run_dir(results) / "eval.json").exists()
+    resumed = train(env_vars, results, *args)
+    assert f"resuming {run_dir(results)} at step {at}/20000" in resumed.stdout
+    assert json.loads((run_dir(results) / "eval.json").read_text())["steps"] == 20000
+
+
 def test_resume_false_clears_the_run_dir(tmp_path):
     from loco_il.experiment.runner import Runner
     for name in ("checkpoint.pt", "log.csv", "log.jsonl", "eval.json", "final_agent.pt"):
