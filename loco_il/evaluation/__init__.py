@@ -273,5 +273,5 @@ def write_json(path: str | Path, data: Mapping[str, Any]) -> None:
         fh.write("\n")
 
 
-__all__ = ["evaluate_policy", "evaluate_agent", "identical_episodes_note", "normalized", "trajectory_similarity", "nn_distance", "mmd",
-           "format_eval_table", "load_run_config", "load_run_agent", "evaluate_run", "record_run", "write_json"]
+__all__ = ["evaluate_policy", "evaluate_agent", "identical_episodes_note", "normalized", "trajectory_similarity",
+           "nn_distance", "mmd", "format_eval_table", "load_run_config", "load_run_agent", "evaluate_run", "record_run", "write_json"]

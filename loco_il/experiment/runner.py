@@ -39,8 +39,6 @@ from loco_il.utils.signals import stop_requests
 RUN_FILES = ("checkpoint.pt", "final_agent.pt", "eval.json", "log.csv", "log.jsonl")
 #: exit status of `train.py` when `stop_after_steps` stopped a run early (as if it had been killed)
 STOPPED_EXIT_CODE = 3
-
-
 #: exit status of `train.py` when SIGINT/SIGTERM stopped a run (after writing a checkpoint)
 SIGNAL_EXIT_CODE = 130
 
@@ -49,7 +47,7 @@ class StopRequested(Exception):
     """`stop_after_steps` was reached: the run stops like a killed one (no checkpoint of the last chunk)."""
 
 
-class StoppedBySignal(StopRequested):
+class StoppedBySignal(Exception):
     """SIGINT/SIGTERM arrived: the run stopped after its current chunk, with a checkpoint."""
 
 
@@ -296,6 +294,7 @@ class Runner:
                             extra=None if finished else {"train_returns": window["returns"]},
                             include_replay=bool(c.get("checkpoint_replay", True)))
 
+        from loco_il.evaluation import identical_episodes_note
         with stop_requests(lambda msg: logger.write(f"[loco_il] {msg}")) as stop:
             try:
                 core = None if self.offline else self._make_core(window, counters)
@@ -320,13 +319,13 @@ class Runner:
                                      f"{row['eval_return_std']:.2f}" + (f", normalized {row['normalized_score']:.3f}"
                                                                         if row.get("normalized_score") is not None
                                                                         else "")
-                                     + (" (all episodes identical)" if row["eval_distinct_episodes"] == 1
-                                        and row["eval_episodes"] > 1 else ""))
-                    if step % ckpt_every == 0 or step == budget:
+                                     + (" (all episodes identical)" if identical_episodes_note(
+                                         {"episodes": row["eval_episodes"],
+                                          "distinct_episodes": row["eval_distinct_episodes"]}) else ""))
+                    # a stop signal checkpoints the chunk it ended, even one that ended at an evaluation
+                    if step % ckpt_every == 0 or step == budget or stop.signal is not None:
                         checkpoint()
                     if stop.signal is not None and step < budget:
-                        if step % ckpt_every:   # this chunk ended at an evaluation: checkpoint it as well
-                            checkpoint()
                         raise StoppedBySignal(f"stopped by {stop.signal} at step {step}/{budget}, checkpoint "
                                               f"saved (re-run the same command to resume)")
                     if stop_after is not None and step >= int(stop_after) and step < budget:
