@@ -212,7 +212,7 @@ class Runner:
                                       f"use resume=auto or resume=false")
             for name in RUN_FILES:   # leftovers of a run killed before its first checkpoint
                 (self.run_dir / name).unlink(missing_ok=True)
-            return None
+            return self._fork() if self.cfg.get("fork_from") else None
         ckpt = load_checkpoint(ckpt_path)
         diffs = config_differences(ckpt.get("config") or {}, self.cfg)
         if diffs:
@@ -221,6 +221,31 @@ class Runner:
                 "\nTo continue that run, use its settings; to start over in this dir, add resume=false; "
                 "otherwise choose another dir (name=<label> or hydra.run.dir=<dir>).")
         return ckpt
+
+    def _fork(self) -> dict:
+        """A new run that starts from another run's checkpoint (`fork_from`: its run dir or checkpoint file):
+        its weights, optimizer states, replay, counters and log rows up to that step, trained on with this
+        config (e.g. an ablation branched from step N instead of repeated from 0). State in the checkpoint
+        wins over initial values in the config (init_alpha, ...); the algorithm and task must be the same."""
+        src = Path(str(self.cfg["fork_from"])).expanduser()
+        src_ckpt = src / CHECKPOINT_NAME if src.is_dir() else src
+        if not src_ckpt.is_file():
+            raise CheckpointError(f"fork_from={src}: no checkpoint there (expected {src_ckpt})")
+        ckpt = load_checkpoint(src_ckpt)
+        old = ckpt.get("config") or {}
+        for key, new in (("task_id", self.task_id), ("algo.name", self.algo_cfg["name"])):
+            head, _, tail = key.partition(".")
+            was = (old.get(head) or {}).get(tail) if tail else old.get(head)
+            if was != new:
+                raise CheckpointError(f"fork_from={src}: that run has {key}={was!r}, this one {new!r}; a fork "
+                                      f"continues the same algorithm on the same task")
+        for name in ("log.csv", "log.jsonl"):   # the curve up to the fork point (truncated to its step later)
+            if (src_ckpt.parent / name).is_file():
+                shutil.copyfile(src_ckpt.parent / name, self.run_dir / name)
+        diffs = [d for d in config_differences(old, self.cfg) if not d.startswith("fork_from")]
+        print(f"[loco_il] forking {src_ckpt} at step {ckpt['counters']['step']}; changed settings:\n  "
+              + ("\n  ".join(diffs) or "none"), flush=True)
+        return dict(ckpt, wandb_id=None, finished=False, forked=True)   # a new W&B run, not the source's
 
     # ------------------------------------------------------------------ main
     def run(self) -> dict:
@@ -278,7 +303,8 @@ class Runner:
                            unit="update" if self.offline else "step")
         if ckpt is not None:
             logger.truncate(step)
-            logger.write(f"[loco_il] resuming {self.run_dir} at step {step}/{budget}")
+            logger.write(f"[loco_il] {'forked from ' + str(c['fork_from']) if ckpt.get('forked') else 'resuming'} "
+                         f"{self.run_dir} at step {step}/{budget}")
         logger.write(f"[loco_il] {self.name} on {self.task_id} (seed {self.seed}): {budget} "
                      f"{'gradient' if self.offline else 'env'} steps, {train.n_trajectories} expert episodes "
                      f"({train.n_transitions} transitions); run dir {self.run_dir}")

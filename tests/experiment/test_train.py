@@ -143,6 +143,44 @@ def test_stopped_run_resumes_to_the_same_result(env_vars, tmp_path):
     assert torch.load(d / "checkpoint.pt", weights_only=False)["finished"]
 
 
+#: a tiny LS-IQ (off-policy: its checkpoint holds a replay memory)
+TINY_LSIQ = ["algo=lsiq", "algo.policy.hidden=[32,32]", "algo.params.critic_hidden=[32,32]",
+             "algo.params.initial_replay_size=100", "algo.params.batch_size=32", "algo.params.expert_batch_size=32"]
+
+
+def test_fork_branches_a_run_at_its_checkpoint(env_vars, tmp_path):
+    """fork_from: a new run starts from another run's checkpoint (state, replay, log rows) with changed settings,
+    trains on to its own budget and resumes as itself; the source run is left as it was."""
+    results = tmp_path / "r"
+    proc = train(env_vars, results, *TINY_LSIQ, "n_steps=600", "eval.every=200", "stop_after_steps=400", check=False)
+    assert proc.returncode == 3, proc.stderr[-2000:]
+    src = run_dir(results, "lsiq")
+    src_rows = csv_rows(src / "log.csv")
+    src_ckpt = torch.load(src / "checkpoint.pt", map_location="cpu", weights_only=False)
+    assert src_ckpt["counters"]["step"] == 400
+
+    fork = train(env_vars, results, *TINY_LSIQ, "n_steps=600", "eval.every=200", "name=lsiq_fork",
+                 f"fork_from={src}", "algo.params.learn_alpha=true")
+    out = fork.stdout + fork.stderr
+    assert "forking" in out and "algo.params.learn_alpha: False -> True" in out
+    d = run_dir(results, "lsiq_fork")
+    rows = csv_rows(d / "log.csv")
+    assert [int(r["step"]) for r in rows] == [200, 400, 600]
+    assert rows[:2] == src_rows[:2]                       # the curve up to the fork point is the source's
+    ckpt = torch.load(d / "checkpoint.pt", map_location="cpu", weights_only=False)
+    assert ckpt["finished"] and ckpt["counters"]["step"] == 600
+    assert ckpt["agent"]["attrs"]["n_transitions"] == 600  # 400 restored + 200 trained after the fork
+    assert ckpt["config"]["algo"]["params"]["learn_alpha"] is True
+    assert torch.load(src / "checkpoint.pt", map_location="cpu", weights_only=False)["counters"]["step"] == 400
+
+    again = train(env_vars, results, *TINY_LSIQ, "n_steps=600", "eval.every=200", "name=lsiq_fork",
+                  f"fork_from={src}", "algo.params.learn_alpha=true")
+    assert "already finished" in again.stdout and "forking" not in again.stdout + again.stderr
+
+    wrong = train(env_vars, results, "algo=bc", "n_steps=600", "name=bc_fork", f"fork_from={src}", check=False)
+    assert wrong.returncode == 2 and "algo.name='lsiq'" in wrong.stderr, wrong.stderr[-2000:]
+
+
 def test_killed_run_resumes(env_vars, tmp_path):
     """SIGKILL once the first checkpoint exists; the same command finishes the run with the full budget."""
     results = tmp_path / "results"
