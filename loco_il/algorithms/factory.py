@@ -3,7 +3,8 @@
 Every algorithm config has the same shape (the keys the experiment runner reads):
 
     name: lsiq                 # registry name (loco_il.algorithms.ALGORITHMS)
-    policy:                    # the GaussianPolicy: hidden sizes, init_log_std (unsquashed policies only)
+    policy:                    # the GaussianPolicy: hidden sizes, init_log_std (unsquashed policies only),
+                               # log_std_bounds (tanh-squashed policies only)
       hidden: [256, 256]
     core:                      # online algorithms only: how mushroom-rl's Core drives the agent
       n_steps_per_fit: 1
@@ -91,9 +92,19 @@ def build_policy(cls: type[ILAgent], obs_dim: int, act_dim: int, policy_cfg: Map
     pc = dict(policy_cfg or {})
     hidden = tuple(int(h) for h in pc.pop("hidden", (256, 256)))
     init_log_std = float(pc.pop("init_log_std", 0.0))
+    squash = is_offpolicy(cls)
+    bounds = pc.pop("log_std_bounds", None)
+    extra = {}
+    if bounds is not None:
+        if not squash:
+            raise ValueError(f"policy.log_std_bounds: {cls.__name__}'s policy has a free (unclamped) log-std; "
+                             "the bounds apply to the tanh-squashed policies of the off-policy learners")
+        if len(bounds) != 2:
+            raise ValueError(f"policy.log_std_bounds must be [min, max], got {bounds}")
+        extra["log_std_bounds"] = (float(bounds[0]), float(bounds[1]))
     if pc:
-        raise ValueError(f"unknown policy keys {sorted(pc)} (known: hidden, init_log_std)")
-    return GaussianPolicy(obs_dim, act_dim, hidden=hidden, squash=is_offpolicy(cls), init_log_std=init_log_std)
+        raise ValueError(f"unknown policy keys {sorted(pc)} (known: hidden, init_log_std, log_std_bounds)")
+    return GaussianPolicy(obs_dim, act_dim, hidden=hidden, squash=squash, init_log_std=init_log_std, **extra)
 
 
 def _check_params(cls: type[ILAgent], params: Mapping[str, Any]) -> None:

@@ -39,7 +39,8 @@ RESUMABLE_KEYS = frozenset({"resume", "stop_after_steps", "logger", "eval", "n_s
                             "device", "torch_threads", "results_dir", "per_algo"})
 #: config keys added after runs may have been checkpointed, with the value that behaves as those runs did:
 #: a checkpoint without the key resumes when the new config holds that value
-ADDED_KEYS: dict[str, Any] = {"init_state": "default"}
+ADDED_KEYS: dict[str, Any] = {"init_state": "default", "algo.policy.log_std_bounds": [-20.0, 2.0],
+                              "algo.params.n_critics": 2}
 
 
 class CheckpointError(RuntimeError):

@@ -291,7 +291,14 @@ class Runner:
         wandb_id = None
         window: dict[str, list] = {"returns": []}   # training returns since the last evaluation
         if ckpt is not None:
-            restore(ckpt, agent=agent, env=env)
+            try:
+                restore(ckpt, agent=agent, env=env)
+            except RuntimeError as exc:   # load_state_dict: missing / unexpected keys, other shapes
+                if not ckpt.get("forked"):
+                    raise
+                raise CheckpointError(f"fork_from={c['fork_from']}: its agent state does not fit this config's "
+                                      f"networks ({str(exc).splitlines()[0]} ...); a fork may change learning "
+                                      "settings, not network sizes or the number of critics") from exc
             counters.update(ckpt["counters"])
             wall, wandb_id = float(ckpt.get("wall_time", 0.0)), ckpt.get("wandb_id")
             window["returns"] = list((ckpt.get("extra") or {}).get("train_returns", []))

@@ -280,21 +280,43 @@ def test_lsiq_agent_mixture_loss_reads_v_on_agent_states_only():
         agent.critic_values(expert, policy, v_on="agent")
 
 
-def test_lsiq_agent_default_fixed_expert_loss_reads_v_on_all_states():
-    agent = _agent(LSIQ)  # default objective="fixed_expert"
+@pytest.mark.parametrize("n_critics", [2, 1])
+def test_lsiq_agent_default_fixed_expert_loss_reads_v_on_all_states(n_critics):
+    agent = _agent(LSIQ, n_critics=n_critics)  # default objective="fixed_expert"
+    assert len(list(agent.sac.critic.children())) == n_critics
     expert, policy, loss = _critic_loss_on_small_batches(agent, 1.0)
     obs = torch.cat([expert["obs"], policy["obs"]])
     nxt = torch.cat([expert["next_obs"], policy["next_obs"]])
     a, logp = agent.policy_module.sample(torch.cat([obs, nxt]))
     alpha = agent.sac.alpha
-    t1, t2 = agent.sac.critic_target(nxt, a[12:])
-    v_next = torch.minimum(t1, t2) - alpha * logp[12:]
+    heads = [agent.sac.critic_target.q1] + ([agent.sac.critic_target.q2] if n_critics == 2 else [])
+    t = [h(torch.cat([nxt, a[12:]], -1)).squeeze(-1) for h in heads]
+    v_next = (torch.minimum(*t) if n_critics == 2 else t[0]) - alpha * logp[12:]
     q = agent.sac.critic(expert["obs"], expert["actions"])
     v = agent.sac.critic(obs, a[:12])
+    assert q.shape == (n_critics, 5) and v.shape == (n_critics, 12)
     absorbing = torch.cat([expert["absorbing"], policy["absorbing"]])
     expected = sum(lsiq_fixed_expert_loss(qi, vi - alpha * logp[:12], v_next, absorbing, 5, 0.99)[0]
                    for qi, vi in zip(q, v))
     assert loss.item() == pytest.approx(expected.item(), rel=1e-5)
+
+
+def test_single_critic_actor_step_follows_its_only_head():
+    """n_critics=1: the actor's loss is alpha log pi - Q of that critic (no minimum over heads); updates run."""
+    agent = _agent(LSIQ, n_critics=1)
+    obs = torch.randn(6, OBS_DIM)
+    torch.manual_seed(4)
+    with torch.no_grad():
+        a, logp = agent.policy_module.sample(obs)
+        expected = (agent.sac.alpha * logp - agent.sac.critic.q1(torch.cat([obs, a], -1)).squeeze(-1)).mean()
+    torch.manual_seed(4)                       # the same policy noise inside actor_step
+    info = agent.sac.actor_step(obs)
+    assert info["actor_loss"].item() == pytest.approx(expected.item(), rel=1e-6)
+    agent.fit(_dataset(n=20))                  # >= initial_replay_size (16): one update per new transition
+    assert agent.n_updates == 20
+    assert {k.split(".")[0] for k in agent.sac.critic.state_dict()} == {"q1"}
+    with pytest.raises(ValueError, match="n_heads"):
+        _agent(LSIQ, n_critics=0)
 
 
 def test_replay_ring_buffer_keeps_newest():
@@ -357,3 +379,40 @@ def test_deterministic_action_is_squashed_mean():
     np.testing.assert_allclose(a1, expected, rtol=1e-6)
     agent.deterministic = False
     assert np.all(np.abs(agent.draw_action(s)) <= 1.0)
+
+
+def test_log_std_bounds_clamp_the_squashed_policy_in_torch_and_numpy():
+    from loco_il.algorithms.factory import build_policy
+    policy = build_policy(LSIQ, OBS_DIM, ACT_DIM, {"hidden": [16], "log_std_bounds": [-5, 2]})
+    with torch.no_grad():                      # log-std outputs far below -5 and above 2 for every input
+        last = policy.net[-1]
+        last.weight.zero_()
+        last.bias[ACT_DIM:] = torch.tensor([-9.0, 7.0] * ACT_DIM)[:ACT_DIM]
+    obs = torch.ones(3, OBS_DIM)
+    _, log_std = policy._mean_log_std(obs)
+    expected = torch.tensor([-5.0, 2.0] * ACT_DIM)[:ACT_DIM]
+    assert torch.equal(log_std, expected.expand(3, ACT_DIM))
+    mean_log_std, _ = policy.numpy_mean_log_std()
+    np.testing.assert_array_equal(mean_log_std(np.ones(OBS_DIM, np.float32))[1], expected.numpy())
+    default = build_policy(LSIQ, OBS_DIM, ACT_DIM, {"hidden": [16]})
+    assert (default.log_std_min, default.log_std_max) == (-20.0, 2.0)
+
+
+def test_log_std_bounds_rejected_where_they_cannot_apply():
+    from loco_il.algorithms.factory import build_policy
+    from loco_il.algorithms.gail import GAIL
+    with pytest.raises(ValueError, match="free .unclamped. log-std"):
+        build_policy(GAIL, OBS_DIM, ACT_DIM, {"log_std_bounds": [-5, 2]})
+    with pytest.raises(ValueError, match=r"must be \[min, max\]"):
+        build_policy(LSIQ, OBS_DIM, ACT_DIM, {"log_std_bounds": [-5]})
+    with pytest.raises(ValueError, match="min < max"):
+        build_policy(LSIQ, OBS_DIM, ACT_DIM, {"log_std_bounds": [2, -5]})
+
+
+def test_runs_checkpointed_before_log_std_bounds_existed_still_resume():
+    from loco_il.experiment.checkpoint import config_differences
+    old = {"algo": {"name": "lsiq", "policy": {"hidden": [256, 256]}}}
+    new = {"algo": {"name": "lsiq", "policy": {"hidden": [256, 256], "log_std_bounds": [-20.0, 2.0]}}}
+    assert config_differences(old, new) == []
+    new["algo"]["policy"]["log_std_bounds"] = [-5.0, 2.0]
+    assert config_differences(old, new) == ["algo.policy.log_std_bounds: [-20.0, 2.0] -> [-5.0, 2.0]"]

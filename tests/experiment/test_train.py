@@ -180,6 +180,10 @@ def test_fork_branches_a_run_at_its_checkpoint(env_vars, tmp_path):
     wrong = train(env_vars, results, "algo=bc", "n_steps=600", "name=bc_fork", f"fork_from={src}", check=False)
     assert wrong.returncode == 2 and "algo.name='lsiq'" in wrong.stderr, wrong.stderr[-2000:]
 
+    shapes = train(env_vars, results, *TINY_LSIQ, "n_steps=600", "eval.every=200", "name=lsiq_fork1",
+                   f"fork_from={src}", "algo.params.n_critics=1", check=False)
+    assert shapes.returncode == 2 and "does not fit this config's networks" in shapes.stderr, shapes.stderr[-2000:]
+
 
 def test_killed_run_resumes(env_vars, tmp_path):
     """SIGKILL once the first checkpoint exists; the same command finishes the run with the full budget."""

@@ -1,10 +1,10 @@
 """Network building blocks shared by every algorithm.
 
 Kept deliberately small: an MLP builder, a diagonal Gaussian policy (optionally
-tanh-squashed, as SAC needs), a fused twin Q critic, `NumpyMLP` (an `mlp` forward for one
-observation on numpy views of the parameters, for acting) and `MLPLinearization` (hand-written
-Jacobian-vector products of an `mlp`, for TRPO's Fisher-vector products). Algorithms compose
-these; none of them defines its own copy.
+tanh-squashed, as SAC needs), a Q critic of one or more heads (SAC's twin critic),
+`NumpyMLP` (an `mlp` forward for one observation on numpy views of the parameters, for acting)
+and `MLPLinearization` (hand-written Jacobian-vector products of an `mlp`, for TRPO's
+Fisher-vector products). Algorithms compose these; none of them defines its own copy.
 """
 from __future__ import annotations
 
@@ -40,14 +40,20 @@ class GaussianPolicy(nn.Module):
     squash=True gives SAC's tanh-squashed policy with a state-dependent std;
     squash=False gives the PPO/TRPO/BC policy with a state-independent log-std.
     Actions live in [-1, 1] (the environments' normalized action space).
+    `log_std_bounds` clamps the squashed policy's state-dependent log-std (SAC's usual (-20, 2); the LS-IQ
+    authors' released runs use (-5, 2)); the unsquashed policy's log-std is a free parameter, not clamped.
     """
 
     def __init__(self, obs_dim: int, act_dim: int, hidden: Sequence[int] = (256, 256),
                  squash: bool = True, init_log_std: float = 0.0,
-                 activation: type[nn.Module] = nn.ReLU):
+                 activation: type[nn.Module] = nn.ReLU,
+                 log_std_bounds: tuple[float, float] = (LOG_STD_MIN, LOG_STD_MAX)):
         super().__init__()
         self.squash = squash
         self.act_dim = act_dim
+        self.log_std_min, self.log_std_max = (float(b) for b in log_std_bounds)
+        if not self.log_std_min < self.log_std_max:
+            raise ValueError(f"GaussianPolicy: log_std_bounds must be (min, max) with min < max, got {log_std_bounds}")
         if squash:
             self.net = mlp(obs_dim, 2 * act_dim, hidden, activation)
         else:
@@ -58,7 +64,7 @@ class GaussianPolicy(nn.Module):
         out = self.net(obs)
         if self.squash:
             mean, log_std = out.chunk(2, dim=-1)
-            return mean, log_std.clamp(LOG_STD_MIN, LOG_STD_MAX)
+            return mean, log_std.clamp(self.log_std_min, self.log_std_max)
         return out, self.log_std.expand_as(out)
 
     def distribution(self, obs: torch.Tensor) -> torch.distributions.Normal:
@@ -94,11 +100,11 @@ class GaussianPolicy(nn.Module):
         parameters (see `NumpyMLP`), and the tensors viewed. Raises TypeError when not possible."""
         net = NumpyMLP(self.net)
         if self.squash:
-            act_dim = self.act_dim
+            act_dim, lo, hi = self.act_dim, self.log_std_min, self.log_std_max
 
             def mean_log_std(x):
                 out = net(x)
-                return out[:act_dim], np.clip(out[act_dim:], LOG_STD_MIN, LOG_STD_MAX)
+                return out[:act_dim], np.clip(out[act_dim:], lo, hi)
             return mean_log_std, net.tensors
         log_std = numpy_view(self.log_std)
         return (lambda x: (net(x), log_std)), net.tensors + [self.log_std]
@@ -111,18 +117,26 @@ class GaussianPolicy(nn.Module):
         return self.net, obs
 
 
-class TwinQ(nn.Module):
-    """Two Q-networks evaluated in one call: Q1(s, a), Q2(s, a), each of shape (batch,)."""
+class EnsembleQ(nn.Module):
+    """`n_heads` independent Q-networks evaluated in one call: a (n_heads, batch) tensor of Q_i(s, a).
+
+    n_heads=2 is SAC's twin critic (Haarnoja et al. 2018b; learners take the minimum of the heads);
+    n_heads=1 a single critic (as in the LS-IQ authors' released runs). Heads are named q1, q2, ... so the
+    state dicts of twin critics saved before `n_heads` existed load unchanged.
+    """
 
     def __init__(self, obs_dim: int, act_dim: int, hidden: Sequence[int] = (256, 256),
-                 activation: type[nn.Module] = nn.ReLU):
+                 activation: type[nn.Module] = nn.ReLU, n_heads: int = 2):
         super().__init__()
-        self.q1 = mlp(obs_dim + act_dim, 1, hidden, activation)
-        self.q2 = mlp(obs_dim + act_dim, 1, hidden, activation)
+        if int(n_heads) < 1:
+            raise ValueError(f"EnsembleQ: n_heads must be >= 1, got {n_heads}")
+        self.n_heads = int(n_heads)
+        for i in range(self.n_heads):
+            self.add_module(f"q{i + 1}", mlp(obs_dim + act_dim, 1, hidden, activation))
 
-    def forward(self, obs: torch.Tensor, action: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    def forward(self, obs: torch.Tensor, action: torch.Tensor) -> torch.Tensor:
         x = torch.cat([obs, action], dim=-1)
-        return self.q1(x).squeeze(-1), self.q2(x).squeeze(-1)
+        return torch.stack([head(x).squeeze(-1) for head in self.children()])
 
 
 def numpy_view(t: torch.Tensor) -> np.ndarray:

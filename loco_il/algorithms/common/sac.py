@@ -3,6 +3,7 @@
 SAC as in Haarnoja et al. 2018 ("Soft Actor-Critic Algorithms and Applications", arXiv:1812.05905;
 equation numbers below are from memory of that paper and were not re-checked):
   * twin critic Q1, Q2 and a Polyak-averaged target copy                     (Sec. 5, Eq. 5-6)
+    (`n_critics=1`: one critic, min_i below is then that critic)
   * actor loss  J_pi = E_s[ alpha log pi(a~|s) - min_i Q_i(s, a~) ],  a~ reparameterized (Eq. 7, 11)
   * temperature J(alpha) = E_a~pi[ -alpha (log pi(a|s) + target_entropy) ], target = -|A|   (Eq. 18)
 The IL methods differ only in the critic objective, so `OffPolicyILAgent` asks its subclass for
@@ -20,7 +21,7 @@ import torch
 from torch import nn
 
 from .agent_base import ILAgent
-from .networks import GaussianPolicy, TwinQ
+from .networks import EnsembleQ, GaussianPolicy
 from .replay import TransitionBuffer
 
 
@@ -46,19 +47,19 @@ def polyak_update(target: nn.Module, source: nn.Module, tau: float) -> None:
 
 
 class SACCore:
-    """Actor, twin critic, target critic, temperature and their optimizers."""
+    """Actor, critic (`n_critics` heads, 2: SAC's twin critic), target critic, temperature and their optimizers."""
 
     def __init__(self, policy: GaussianPolicy, obs_dim: int, act_dim: int,
                  critic_hidden: Sequence[int] = (256, 256), gamma: float = 0.99, tau: float = 0.005,
                  actor_lr: float = 3e-4, critic_lr: float = 3e-4, alpha_lr: float = 3e-4,
                  init_alpha: float = 1.0, learn_alpha: bool = True, target_entropy: float | None = None,
-                 critic_grad_clip: float | None = None, device: str | torch.device = "cpu"):
+                 critic_grad_clip: float | None = None, device: str | torch.device = "cpu", n_critics: int = 2):
         if not getattr(policy, "squash", False):
             raise ValueError("SAC needs a tanh-squashed GaussianPolicy (squash=True)")
         self.device = torch.device(device)
         self.policy = policy
         self.gamma, self.tau = float(gamma), float(tau)
-        self.critic = TwinQ(obs_dim, act_dim, critic_hidden).to(self.device)
+        self.critic = EnsembleQ(obs_dim, act_dim, critic_hidden, n_heads=n_critics).to(self.device)
         self.critic_target = copy.deepcopy(self.critic).requires_grad_(False)
         self.log_alpha = torch.tensor(math.log(init_alpha), device=self.device, requires_grad=True)
         self.learn_alpha = learn_alpha
@@ -83,8 +84,7 @@ class SACCore:
         loss keeps it), for tasks where entropy terms that outweigh the reward would make ending pay.
         """
         a, logp = self.policy.sample(next_obs)
-        q1, q2 = self.critic_target(next_obs, a)
-        q = torch.minimum(q1, q2)
+        q = self.critic_target(next_obs, a).amin(0)
         return q - self.alpha * logp if with_entropy else q
 
     def critic_step(self, loss: torch.Tensor) -> None:
@@ -100,8 +100,7 @@ class SACCore:
             p.requires_grad_(False)
         try:
             a, logp = self.policy.sample(obs)
-            q1, q2 = self.critic(obs, a)
-            loss = actor_loss(self.alpha, logp, torch.minimum(q1, q2))
+            loss = actor_loss(self.alpha, logp, self.critic(obs, a).amin(0))
             self.actor_opt.zero_grad(set_to_none=True)
             loss.backward()
             self.actor_opt.step()
@@ -159,14 +158,14 @@ class OffPolicyILAgent(ILAgent):
                  replay_capacity: int = 1_000_000, initial_replay_size: int = 1000,
                  random_initial_steps: int = 0, updates_per_step: int = 1, actor_delay: int = 1,
                  critic_grad_clip: float | None = None, actor_on_expert_states: bool = True,
-                 device: str = "cpu", seed: int | None = None):
+                 n_critics: int = 2, device: str = "cpu", seed: int | None = None):
         super().__init__(mdp_info, policy_module, device=device, seed=seed)
         self.obs_dim = int(np.prod(mdp_info.observation_space.shape))
         self.act_dim = int(np.prod(mdp_info.action_space.shape))
         self.gamma = float(mdp_info.gamma)
         self.sac = SACCore(self.policy_module, self.obs_dim, self.act_dim, critic_hidden, self.gamma, tau,
                            actor_lr, critic_lr, alpha_lr, init_alpha, learn_alpha, target_entropy,
-                           critic_grad_clip, self.device)
+                           critic_grad_clip, self.device, n_critics)
         self.batch_size, self.expert_batch_size = int(batch_size), int(expert_batch_size)
         self.initial_replay_size = int(initial_replay_size)
         self.random_initial_steps = int(random_initial_steps)
@@ -226,13 +225,14 @@ class OffPolicyILAgent(ILAgent):
                       online_next: bool = False, v_on: str = "all", q_on: str = "all") -> dict[str, torch.Tensor]:
         """Everything the implicit-reward losses need, with one policy and one critic forward.
 
-        Returns, for the concatenation [expert; policy] of length N (first `n_expert` are expert):
-          q      (2, N)  Q_i(s, a) of both heads (with grad); q_on="expert" / "policy": those rows only
-          v      (2, N)  V_i(s) = Q_i(s, a~) - alpha log pi(a~|s), a~ ~ pi(.|s)  (grad into Q only); if need_v.
-                         v_on="expert" / "policy" computes it on those rows only ((2, n_expert) / (2, N - n_expert)):
+        Returns, for the concatenation [expert; policy] of length N (first `n_expert` are expert), with H the
+        number of critic heads (2 for SAC's twin critic):
+          q      (H, N)  Q_i(s, a) of every head (with grad); q_on="expert" / "policy": those rows only
+          v      (H, N)  V_i(s) = Q_i(s, a~) - alpha log pi(a~|s), a~ ~ pi(.|s)  (grad into Q only); if need_v.
+                         v_on="expert" / "policy" computes it on those rows only ((H, n_expert) / (H, N - n_expert)):
                          rows a loss does not read are neither sampled nor run through the critic
-          v_next (2, N)  V(s'): from the online heads (with grad) if online_next, else
-                         min_i Q_target_i(s', a') - alpha log pi(a'|s') (no grad), repeated for both heads
+          v_next (H, N)  V(s'): from the online heads (with grad) if online_next, else
+                         min_i Q_target_i(s', a') - alpha log pi(a'|s') (no grad), repeated for every head
           absorbing (N,)
         """
         n_e = len(expert["obs"])
@@ -257,8 +257,7 @@ class OffPolicyILAgent(ILAgent):
             crit_obs.append(v_obs); crit_act.append(a_pi[:n_v])
         if online_next:
             crit_obs.append(next_obs); crit_act.append(a_pi[-n:])
-        q1, q2 = self.sac.critic(torch.cat(crit_obs), torch.cat(crit_act))
-        qs = torch.stack([q1, q2])  # (2, rows): [Q rows; V rows if need_v; next-state rows if online_next]
+        qs = self.sac.critic(torch.cat(crit_obs), torch.cat(crit_act))  # (H, rows): [Q; V if need_v; next if online_next]
         out = {"q": qs[:, :n_q], "absorbing": torch.cat([expert["absorbing"], policy["absorbing"]]), "n_expert": n_e}
         if need_v:
             out["v"] = qs[:, n_q:n_q + n_v] - alpha * logp[:n_v]
@@ -266,6 +265,6 @@ class OffPolicyILAgent(ILAgent):
             out["v_next"] = qs[:, -n:] - alpha * logp[-n:]
         else:
             with torch.no_grad():
-                t1, t2 = self.sac.critic_target(next_obs, a_pi[-n:])
-                out["v_next"] = (torch.minimum(t1, t2) - alpha * logp[-n:]).expand(2, n)
+                t_min = self.sac.critic_target(next_obs, a_pi[-n:]).amin(0)
+                out["v_next"] = (t_min - alpha * logp[-n:]).expand(len(qs), n)
         return out
