@@ -384,13 +384,14 @@ def test_deterministic_action_is_squashed_mean():
 def test_log_std_bounds_clamp_the_squashed_policy_in_torch_and_numpy():
     from loco_il.algorithms.factory import build_policy
     policy = build_policy(LSIQ, OBS_DIM, ACT_DIM, {"hidden": [16], "log_std_bounds": [-5, 2]})
-    with torch.no_grad():                      # log-std outputs far below -5 and above 2 for every input
+    assert ACT_DIM == 2
+    with torch.no_grad():                      # raw log-std outputs -9 and 7 for every input: outside [-5, 2]
         last = policy.net[-1]
         last.weight.zero_()
-        last.bias[ACT_DIM:] = torch.tensor([-9.0, 7.0] * ACT_DIM)[:ACT_DIM]
+        last.bias[ACT_DIM:] = torch.tensor([-9.0, 7.0])
     obs = torch.ones(3, OBS_DIM)
     _, log_std = policy._mean_log_std(obs)
-    expected = torch.tensor([-5.0, 2.0] * ACT_DIM)[:ACT_DIM]
+    expected = torch.tensor([-5.0, 2.0])
     assert torch.equal(log_std, expected.expand(3, ACT_DIM))
     mean_log_std, _ = policy.numpy_mean_log_std()
     np.testing.assert_array_equal(mean_log_std(np.ones(OBS_DIM, np.float32))[1], expected.numpy())

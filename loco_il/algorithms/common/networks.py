@@ -130,8 +130,7 @@ class EnsembleQ(nn.Module):
         super().__init__()
         if int(n_heads) < 1:
             raise ValueError(f"EnsembleQ: n_heads must be >= 1, got {n_heads}")
-        self.n_heads = int(n_heads)
-        for i in range(self.n_heads):
+        for i in range(int(n_heads)):
             self.add_module(f"q{i + 1}", mlp(obs_dim + act_dim, 1, hidden, activation))
 
     def forward(self, obs: torch.Tensor, action: torch.Tensor) -> torch.Tensor:
