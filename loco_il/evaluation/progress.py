@@ -5,7 +5,9 @@ many sittings on a small machine (they resume from `checkpoint.pt`), so this pri
 below the folder, finished or not: its budget, the last evaluation logged in `log.csv` (step, return,
 normalized score), the training speed of the last interval and, for unfinished runs, the wall time the
 rest of the budget needs at that speed. It reads only `config.yaml` and `log.csv` (no checkpoint), so it
-is instant and safe to run while the runs are training.
+is instant and safe to run while the runs are training. `--curves` adds each run's learning curve, the
+normalized score at every evaluation (`25k:0.33 50k:0.40 ...`), since run dirs are often not kept as long as
+the numbers are needed.
 """
 from __future__ import annotations
 
@@ -35,11 +37,13 @@ def run_progress(run_dir: str | Path) -> dict[str, Any] | None:
     speed = last.get("steps_per_s")
     finished = (run_dir / "eval.json").is_file()
     rest_h = None if finished or not speed else max(budget - step, 0) / speed / 3600.0
+    curve = [(int(r["step"]), r.get("normalized_score")) for r in rows if r.get("step") is not None]
     return {"run_dir": str(run_dir), "task": cfg.get("task_id", "?"), "algorithm": cfg.get("name", "?"),
             "seed": cfg.get("seed"), "step": step, "budget": budget,
             "done": step / budget if budget else None, "return": last.get("eval_return_mean"),
             "normalized": last.get("normalized_score"), "steps_per_s": speed, "rest_hours": rest_h,
-            "state": "finished" if finished else ("no evaluation yet" if not rows else "in progress")}
+            "state": "finished" if finished else ("no evaluation yet" if not rows else "in progress"),
+            "curve": curve}
 
 
 def collect_progress(root: str | Path) -> list[dict[str, Any]]:
@@ -69,10 +73,18 @@ def to_markdown(rows: list[dict[str, Any]]) -> str:
     return "\n".join(lines)
 
 
+def format_curve(row: dict[str, Any]) -> str:
+    """`task algorithm seed s: 25k:0.33 50k:0.40 ...` (steps in thousands; n/a where no score was logged)."""
+    points = " ".join(f"{step / 1000:g}k:{_cell(score, '.2f')}" for step, score in row["curve"])
+    return f"{row['task']} {row['algorithm']} seed {row['seed']}: {points or 'no evaluation yet'}"
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m loco_il.evaluation.progress",
                                      description=__doc__.splitlines()[0])
     parser.add_argument("root", help="folder searched (recursively) for train.py run dirs, e.g. runs/")
+    parser.add_argument("--curves", action="store_true",
+                        help="also print each run's normalized score at every evaluation")
     args = parser.parse_args(argv)
     if not Path(args.root).is_dir():
         print(f"error: {args.root} is not a folder", file=sys.stderr)
@@ -84,6 +96,10 @@ def main(argv: list[str] | None = None) -> int:
     print(to_markdown(rows))
     print("\n'rest (h)': the rest of the budget at the last interval's speed; the checkpoint may be up to one "
           "evaluation interval ahead of 'last eval step'.")
+    if args.curves:
+        print("\nnormalized score at each evaluation:")
+        for row in rows:
+            print(format_curve(row))
     return 0
 
 

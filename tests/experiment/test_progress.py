@@ -53,3 +53,15 @@ def test_progress_cli_errors(tmp_path, capsys):
     assert "is not a folder" in capsys.readouterr().err
     assert progress.main([str(tmp_path)]) == 1
     assert "no train.py run dirs" in capsys.readouterr().err
+
+
+def test_progress_curves(tmp_path, capsys):
+    make_run(tmp_path, "lsiq", 1_500_000, [(25_000, 90.0, 1100.0, 0.334), (50_000, 95.0, 1300.0, 0.396),
+                                           (1_500_000, 95.0, 3000.0, None)])
+    make_run(tmp_path, "sqil", 1_000_000, [])
+    assert progress.main([str(tmp_path), "--curves"]) == 0
+    out = capsys.readouterr().out
+    assert "Hopper.run.perfect lsiq seed 0: 25k:0.33 50k:0.40 1500k:n/a" in out
+    assert "Hopper.run.perfect sqil seed 0: no evaluation yet" in out
+    assert progress.main([str(tmp_path)]) == 0
+    assert "normalized score at each evaluation" not in capsys.readouterr().out
