@@ -48,7 +48,12 @@ class StopRequested(Exception):
 
 
 class StoppedBySignal(Exception):
-    """SIGINT/SIGTERM arrived: the run stopped after its current chunk, with a checkpoint."""
+    """SIGINT/SIGTERM arrived: the run stopped after the agent's next fit, with a checkpoint."""
+
+
+class _StopAtFit(Exception):
+    """Raised by the Core's fit callback once a stop signal has arrived: ends `Core.learn` right after a fit,
+    so every collected transition has been fitted and the checkpoint is consistent."""
 
 
 class ExperimentConfigError(ValueError):
@@ -330,17 +335,17 @@ class Runner:
         from loco_il.evaluation import identical_episodes_note
         with stop_requests(lambda msg: logger.write(f"[loco_il] {msg}")) as stop:
             try:
-                core = None if self.offline else self._make_core(window, counters)
+                core = None if self.offline else self._make_core(window, counters, stop)
                 last_t, last_step = clock(), step
                 while step < budget:
                     nxt_eval = (step // eval_every + 1) * eval_every
                     nxt_ckpt = (step // ckpt_every + 1) * ckpt_every
                     n = min(nxt_eval, nxt_ckpt, budget) - step
-                    fit_info = self._train_chunk(agent, core, n, unit)
-                    step += n
+                    done, fit_info = self._train_chunk(agent, core, n, unit, stop)
+                    step += done
                     counters["step"] = step
                     if not self.offline:
-                        counters["env_steps"] += n
+                        counters["env_steps"] += done
                     if step % eval_every == 0 or step == budget:
                         now = clock()
                         row = self._evaluate_row(counters, now, (step - last_step) / max(now - last_t, 1e-9),
@@ -355,7 +360,8 @@ class Runner:
                                      + (" (all episodes identical)" if identical_episodes_note(
                                          {"episodes": row["eval_episodes"],
                                           "distinct_episodes": row["eval_distinct_episodes"]}) else ""))
-                    # a stop signal checkpoints the chunk it ended, even one that ended at an evaluation
+                    # a stop signal ends the chunk at the next fit and checkpoints there: within seconds
+                    # instead of up to a whole interval later (a scheduler's SIGTERM grace is often short)
                     if step % ckpt_every == 0 or step == budget or stop.signal is not None:
                         checkpoint()
                     if stop.signal is not None and step < budget:
@@ -374,9 +380,9 @@ class Runner:
         return result
 
     # ------------------------------------------------------------------ pieces
-    def _make_core(self, window: dict, counters: dict):
+    def _make_core(self, window: dict, counters: dict, stop):
         from mushroom_rl.core import Core
-        state = {"ret": 0.0}
+        state = {"ret": 0.0, "steps": 0}
         logger = self.logger
 
         def on_step(samples):
@@ -387,30 +393,42 @@ class Runner:
                     counters["episodes"] += 1
                     state["ret"] = 0.0
             on_step.k += 1
+            state["steps"] += len(samples)
             if on_step.k >= 200:
                 logger.progress(on_step.k, train_return=np.mean(window["returns"][-10:]) if window["returns"] else None)
                 on_step.k = 0
 
+        def stop_at_fit(_dataset) -> None:
+            if stop.signal is not None:
+                raise _StopAtFit
+
         on_step.k = 0
-        core = Core(self.agent, self.env, callback_step=on_step)
+        core = Core(self.agent, self.env, callback_step=on_step, callbacks_fit=[stop_at_fit])
         self._on_step, self._step_state = on_step, state
         return core
 
-    def _train_chunk(self, agent, core, n: int, unit: int) -> dict:
+    def _train_chunk(self, agent, core, n: int, unit: int, stop) -> tuple[int, dict]:
+        """Train for `n` steps, or fewer when a stop signal arrives (then up to the next fit);
+        returns (steps done, the last fit's info)."""
         if self.offline:
             done, loss = 0, None
-            while done < n:
+            while done < n and stop.signal is None:
                 k = min(100, n - done)
                 loss = agent.pretrain(k)
                 done += k
                 self.logger.progress(k, loss=loss)
-            return {"bc_loss": loss}
+            return done, {"bc_loss": loss}
         self._step_state["ret"] = 0.0            # Core.learn starts a fresh episode
-        core.learn(n_steps=n, n_steps_per_fit=unit, quiet=True)
+        self._step_state["steps"] = 0
+        try:
+            core.learn(n_steps=n, n_steps_per_fit=unit, quiet=True)
+            done = n
+        except _StopAtFit:
+            done = self._step_state["steps"]
         self.logger.progress(self._on_step.k)
         self._on_step.k = 0
         info = getattr(agent, "last_fit_info", None) or getattr(agent, "last_info", None) or {}
-        return dict(info)
+        return done, dict(info)
 
     def _evaluate_row(self, counters: dict, wall: float, sps: float, window: dict, fit_info: dict) -> dict:
         from loco_il.evaluation import evaluate_agent, normalized

@@ -211,33 +211,60 @@ def test_killed_run_resumes(env_vars, tmp_path):
     assert steps == [500, 1000, 1500, 2000]
 
 
-def test_sigterm_stops_with_a_checkpoint_and_resumes(env_vars, tmp_path):
-    """SIGTERM after the first evaluation: the run ends after its current chunk with a checkpoint at that
-    step (an evaluation step, not only a checkpoint_every multiple), exit status 130; the same command
-    finishes it."""
-    results = tmp_path / "results"
-    args = ["algo=bc", "n_steps=20000", "eval.every=500", "checkpoint_every=10000"]
+def start_and_signal(env_vars, results: Path, args: list[str], ready, sig=signal.SIGTERM, delay: float = 0.0):
+    """Start train.py, send `sig` once `ready()` holds (plus `delay` seconds); returns (exit status, stderr, seconds
+    from the signal to the exit)."""
     cmd = [sys.executable, "train.py", f"results_dir={results}", *FAST, *args]
-    proc = subprocess.Popen(cmd, cwd=ROOT, env=env_vars, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    log = run_dir(results) / "log.csv"
+    proc = subprocess.Popen(cmd, cwd=ROOT, env=env_vars, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     try:
         deadline = time.time() + 240
-        while not (log.exists() and csv_rows(log)) and proc.poll() is None and time.time() < deadline:
+        while not ready() and proc.poll() is None and time.time() < deadline:
             time.sleep(0.05)
+        time.sleep(delay)
         assert proc.poll() is None, "the run ended before it could be stopped"
-        proc.send_signal(signal.SIGTERM)
-        out, err = proc.communicate(timeout=240)
+        t0 = time.time()
+        proc.send_signal(sig)
+        _, err = proc.communicate(timeout=240)
+        return proc.returncode, err, time.time() - t0
     finally:
         if proc.poll() is None:
             proc.kill()
-    assert proc.returncode == 130, err[-2000:]
+
+
+def test_sigterm_stops_with_a_checkpoint_and_resumes(env_vars, tmp_path):
+    """SIGTERM after the first evaluation of a BC run: it stops within 100 gradient steps with a checkpoint at
+    that step (not only at an evaluation or checkpoint_every multiple), exit status 130; the same command
+    finishes it."""
+    results = tmp_path / "results"
+    args = ["algo=bc", "n_steps=20000", "eval.every=500", "checkpoint_every=10000"]
+    log = run_dir(results) / "log.csv"
+    code, err, _ = start_and_signal(env_vars, results, args, lambda: log.exists() and csv_rows(log))
+    assert code == 130, err[-2000:]
     at = torch.load(run_dir(results) / "checkpoint.pt", weights_only=False)["counters"]["step"]
-    assert 0 < at < 20000 and at % 500 == 0
+    assert 0 < at < 20000 and at % 100 == 0
     assert f"stopped by SIGTERM at step {at}/20000, checkpoint saved" in err
-    assert int(csv_rows(log)[-1]["step"]) == at and not (run_dir(results) / "eval.json").exists()
+    assert int(csv_rows(log)[-1]["step"]) <= at and not (run_dir(results) / "eval.json").exists()
     resumed = train(env_vars, results, *args)
     assert f"resuming {run_dir(results)} at step {at}/20000" in resumed.stdout
     assert json.loads((run_dir(results) / "eval.json").read_text())["steps"] == 20000
+
+
+def test_sigterm_stops_an_online_run_at_its_next_fit(env_vars, tmp_path):
+    """An online learner stops at the fit after the signal, not at the end of its 100k-step chunk: the
+    checkpoint holds a whole number of fits (200 env steps each) and the run resumes from it."""
+    results = tmp_path / "results"
+    args = [*TINY_GAIL, "n_steps=200000", "eval.every=100000", "checkpoint_every=100000"]
+    config = run_dir(results, "gail") / "config.yaml"
+    code, err, seconds = start_and_signal(env_vars, results, args, config.exists, delay=3.0)
+    assert code == 130, err[-2000:]
+    ckpt = torch.load(run_dir(results, "gail") / "checkpoint.pt", weights_only=False)
+    at, env_steps = ckpt["counters"]["step"], ckpt["counters"]["env_steps"]
+    assert 0 <= at < 100000 and at % 200 == 0 and env_steps == at
+    assert f"stopped by SIGTERM at step {at}/200000, checkpoint saved" in err
+    assert seconds < 60, f"the stop took {seconds:.0f} s"
+    resumed = train(env_vars, results, *args[:-3], f"n_steps={at + 400}", "eval.every=100000")
+    assert f"resuming {run_dir(results, 'gail')} at step {at}/{at + 400}" in resumed.stdout
+    assert json.loads((run_dir(results, "gail") / "eval.json").read_text())["steps"] == at + 400
 
 
 def test_resume_false_clears_the_run_dir(tmp_path):
