@@ -211,9 +211,9 @@ def test_killed_run_resumes(env_vars, tmp_path):
     assert steps == [500, 1000, 1500, 2000]
 
 
-def start_and_signal(env_vars, results: Path, args: list[str], ready, sig=signal.SIGTERM, delay: float = 0.0):
-    """Start train.py, send `sig` once `ready()` holds (plus `delay` seconds); returns (exit status, stderr, seconds
-    from the signal to the exit)."""
+def start_and_signal(env_vars, results: Path, args: list[str], ready, delay: float = 0.0):
+    """Start train.py, send SIGTERM once `ready()` holds (plus `delay` seconds); returns (exit status, stderr,
+    seconds from the signal to the exit)."""
     cmd = [sys.executable, "train.py", f"results_dir={results}", *FAST, *args]
     proc = subprocess.Popen(cmd, cwd=ROOT, env=env_vars, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     try:
@@ -223,7 +223,7 @@ def start_and_signal(env_vars, results: Path, args: list[str], ready, sig=signal
         time.sleep(delay)
         assert proc.poll() is None, "the run ended before it could be stopped"
         t0 = time.time()
-        proc.send_signal(sig)
+        proc.send_signal(signal.SIGTERM)
         _, err = proc.communicate(timeout=240)
         return proc.returncode, err, time.time() - t0
     finally:
