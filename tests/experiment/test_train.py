@@ -243,7 +243,9 @@ def test_sigterm_stops_with_a_checkpoint_and_resumes(env_vars, tmp_path):
     at = torch.load(run_dir(results) / "checkpoint.pt", weights_only=False)["counters"]["step"]
     assert 0 < at < 20000 and at % 100 == 0
     assert f"stopped by SIGTERM at step {at}/20000, checkpoint saved" in err
-    assert int(csv_rows(log)[-1]["step"]) <= at and not (run_dir(results) / "eval.json").exists()
+    # every evaluation up to the stop is logged, none after it
+    assert [int(r["step"]) for r in csv_rows(log)] == list(range(500, at + 1, 500))
+    assert not (run_dir(results) / "eval.json").exists()
     resumed = train(env_vars, results, *args)
     assert f"resuming {run_dir(results)} at step {at}/20000" in resumed.stdout
     assert json.loads((run_dir(results) / "eval.json").read_text())["steps"] == 20000
