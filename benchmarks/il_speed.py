@@ -3,8 +3,8 @@
 Part 1 -- off-policy update cost. One `update()` of each SAC-based agent (IQ-Learn, LS-IQ, LSIQ-fO, SQIL)
 built from its `experiment_configs/algo/*.yaml` config ([256, 256] actor and critic, 256 agent + 256
 expert samples per update) against a bare PyTorch SAC update written out below with the same networks on
-the same 512 samples (replay gather, twin-critic MSE to a soft target, actor loss, temperature loss,
-Polyak step). Random data with Hopper's dimensions (obs 11, act 3). Timings after a warm-up, median of
+the same 512 samples (replay gather, critic MSE to a soft target, actor loss, temperature loss,
+Polyak step), with as many critic heads as the agent's config (`n_critics`: 2 = SAC's twin critic, 1 = one). Random data with Hopper's dimensions (obs 11, act 3). Timings after a warm-up, median of
 `--reps` blocks of `--updates` updates; the agents and the bare update alternate block by block, so
 machine load hits all of them alike. ratio = agent time / bare time (goal <= 1.2x).
 Note that the IL critics do inherently more work than SAC's: IQ-Learn and LS-IQ (value term) evaluate
@@ -39,7 +39,7 @@ from mushroom_rl.core import Core, MDPInfo
 from mushroom_rl.utils.spaces import Box
 
 from loco_il.algorithms.factory import build_agent
-from loco_il.algorithms.common.networks import GaussianPolicy, TwinQ
+from loco_il.algorithms.common.networks import EnsembleQ, GaussianPolicy
 
 ROOT = Path(__file__).resolve().parents[1]
 OBS_DIM, ACT_DIM = 11, 3  # Hopper
@@ -52,9 +52,11 @@ def load_cfg(name: str) -> dict:
 
 # ---------------------------------------------------------------------------- bare SAC
 class BareSAC:
-    """Minimal SAC update on preallocated replay tensors: the floor the agents are compared with."""
+    """Minimal SAC update on preallocated replay tensors: the floor the agents are compared with.
+    `n_critics` critic heads (2: SAC's twin critic; 1: one critic), the agents' `EnsembleQ`."""
 
-    def __init__(self, n: int, batch: int, hidden=(256, 256), gamma=0.99, tau=0.005, lr=3e-4, seed=0):
+    def __init__(self, n: int, batch: int, hidden=(256, 256), gamma=0.99, tau=0.005, lr=3e-4, seed=0,
+                 n_critics: int = 2):
         g = torch.Generator().manual_seed(seed)
         self.obs = torch.randn(n, OBS_DIM, generator=g)
         self.next_obs = torch.randn(n, OBS_DIM, generator=g)
@@ -64,7 +66,7 @@ class BareSAC:
         self.rng = np.random.default_rng(seed)
         self.batch, self.gamma, self.tau = batch, gamma, tau
         self.pi = GaussianPolicy(OBS_DIM, ACT_DIM, hidden, squash=True)
-        self.q = TwinQ(OBS_DIM, ACT_DIM, hidden)
+        self.q = EnsembleQ(OBS_DIM, ACT_DIM, hidden, n_heads=n_critics)
         self.q_targ = copy.deepcopy(self.q).requires_grad_(False)
         self.log_alpha = torch.zeros((), requires_grad=True)
         # foreach=True as in SACCore, so that the ratio measures the agents' overheads, not the optimizer kind
@@ -80,18 +82,15 @@ class BareSAC:
         alpha = self.log_alpha.detach().exp()
         with torch.no_grad():
             a2, logp2 = self.pi.sample(s2)
-            t1, t2 = self.q_targ(s2, a2)
-            y = r + self.gamma * (1 - d) * (torch.minimum(t1, t2) - alpha * logp2)
-        q1, q2 = self.q(s, a)
-        q_loss = (q1 - y).pow(2).mean() + (q2 - y).pow(2).mean()
+            y = r + self.gamma * (1 - d) * (self.q_targ(s2, a2).amin(0) - alpha * logp2)
+        q_loss = (self.q(s, a) - y).pow(2).mean(-1).sum()
         self.q_opt.zero_grad(set_to_none=True)
         q_loss.backward()
         self.q_opt.step()
         for p in self.q_params:
             p.requires_grad_(False)
         a_pi, logp = self.pi.sample(s)
-        p1, p2 = self.q(s, a_pi)
-        pi_loss = (alpha * logp - torch.minimum(p1, p2)).mean()
+        pi_loss = (alpha * logp - self.q(s, a_pi).amin(0)).mean()
         self.pi_opt.zero_grad(set_to_none=True)
         pi_loss.backward()
         self.pi_opt.step()
@@ -141,13 +140,21 @@ def compiled_bare_sac(n_replay: int) -> BareSAC:
     return bare
 
 
+def bare_name(n_critics: int) -> str:
+    return "bare SAC" if n_critics == 2 else f"bare SAC {n_critics}Q"
+
+
 def bench_offpolicy(names, updates: int, reps: int, with_compiled: bool = False) -> dict[str, float]:
+    """Median seconds per update of each agent and of the bare SAC update with the same number of critic heads
+    (each agent's ratio is taken against that one)."""
     n_replay = 20_000
-    runners = {"bare SAC": BareSAC(n_replay, 512).update}
+    agents = {name: make_offpolicy_agent(name, n_replay) for name in names}
+    heads = {name: len(list(agent.sac.critic.children())) for name, agent in agents.items()}
+    runners = {bare_name(n): BareSAC(n_replay, 512, n_critics=n).update for n in sorted({2, *heads.values()},
+                                                                                      reverse=True)}
     if with_compiled:
         runners["compiled"] = compiled_bare_sac(n_replay).update
-    for name in names:
-        runners[name] = make_offpolicy_agent(name, n_replay).update
+    runners.update({name: agent.update for name, agent in agents.items()})
     for fn in runners.values():  # warm-up
         for _ in range(10):
             fn()
@@ -159,12 +166,12 @@ def bench_offpolicy(names, updates: int, reps: int, with_compiled: bool = False)
                 fn()
             times[key].append((time.perf_counter() - start) / updates)
     med = {k: statistics.median(v) for k, v in times.items()}
-    base = med["bare SAC"]
     print("\n## Off-policy: one update, [256, 256] networks, 256 agent + 256 expert samples "
           f"(bare SAC: batch 512), median of {reps} x {updates} updates, 1 thread")
-    print(f"{'agent':<10}{'ms/update':>11}{'ratio':>8}  (goal <= 1.2x)")
+    print(f"{'agent':<14}{'ms/update':>11}{'ratio':>8}  against     (goal <= 1.2x)")
     for k, v in med.items():
-        print(f"{k:<10}{1e3 * v:>11.2f}{v / base:>8.2f}")
+        base = bare_name(heads.get(k, 2))
+        print(f"{k:<14}{1e3 * v:>11.2f}{v / med[base]:>8.2f}  {base}")
     return med
 
 

@@ -1,0 +1,54 @@
+"""The benchmark scripts the RESULTS.md figures come from: they run, and their measures mean what they say."""
+from __future__ import annotations
+
+import importlib.util
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import torch
+
+BENCHMARKS = Path(__file__).resolve().parents[2] / "benchmarks"
+
+
+def load_script(name: str):
+    spec = importlib.util.spec_from_file_location(name, BENCHMARKS / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def quadratic_critic(obs: torch.Tensor, act: torch.Tensor) -> torch.Tensor:
+    """Two heads, (2, N): Q(s, a) = -|a - target(s)|^2 with target(s) = 0.5 * obs[:, :2]; the second head lower."""
+    q = -(act - 0.5 * obs[:, :2]).pow(2).sum(-1)
+    return torch.stack([q, q - 1.0])
+
+
+def test_q_gap_is_zero_or_less_at_the_critics_maximum_and_positive_away_from_it():
+    q_gap = load_script("offpolicy_diagnostics").q_gap
+    obs = torch.tensor([[0.4, -0.6, 3.0], [-1.0, 1.0, 0.0]])
+    best = 0.5 * obs[:, :2]
+    gap_at_best = q_gap(quadratic_critic, obs, best, n_actions=256)
+    assert (gap_at_best <= 0).all()
+    assert (gap_at_best > -0.05).all()   # 256 uniform actions in [-1, 1]^2 come close to the maximum
+    worst = -torch.sign(best)            # the far corner: Q = -(1 + |target|)^2 summed
+    gap_at_worst = q_gap(quadratic_critic, obs, worst, n_actions=256, chunk=1)
+    assert torch.allclose(gap_at_worst, (1 + best.abs()).pow(2).sum(-1), atol=0.05)
+
+
+def test_il_speed_runs_and_compares_each_agent_with_the_bare_update_of_its_critic_count():
+    out = subprocess.run([sys.executable, str(BENCHMARKS / "il_speed.py"), "--updates", "1", "--reps", "1",
+                          "--offpolicy", "lsiq", "sqil", "--onpolicy", "gail", "--onpolicy-fits", "1",
+                          "--onpolicy-reps", "1", "--random-expert"],
+                         capture_output=True, text=True, timeout=300, check=True).stdout
+    offpolicy, onpolicy = out.split("## Off-policy")[1].split("## On-policy")
+    off_rows = {m[0]: (float(m[1]), m[2]) for m in
+                re.findall(r"^(\S+(?: SAC(?: \dQ)?)?)\s+[\d.]+\s+([\d.]+)\s+(bare SAC(?: \dQ)?)$", offpolicy, re.M)}
+    assert {"bare SAC", "lsiq", "sqil"} <= set(off_rows), out
+    for name, (ratio, against) in off_rows.items():
+        assert against in off_rows, out            # the bare update it is compared with was timed too
+        if name == against:
+            assert ratio == 1.0
+    on_rows = dict(re.findall(r"^(\S+(?: env)?)\s+\d+\s+([\d.]+)$", onpolicy, re.M))
+    assert float(on_rows["bare env"]) == 1.0 and 0 < float(on_rows["gail"]), out
