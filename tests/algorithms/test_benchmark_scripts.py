@@ -7,6 +7,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
 import torch
 
 BENCHMARKS = Path(__file__).resolve().parents[2] / "benchmarks"
@@ -17,6 +18,12 @@ def load_script(name: str):
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
+
+
+@pytest.mark.parametrize("name", sorted(p.stem for p in BENCHMARKS.glob("*.py")))
+def test_every_benchmark_script_imports(name):
+    """A renamed or removed library name breaks a script only when it runs; importing it finds that early."""
+    assert callable(getattr(load_script(name), "main", None))
 
 
 def quadratic_critic(obs: torch.Tensor, act: torch.Tensor) -> torch.Tensor:
