@@ -261,17 +261,18 @@ def test_iqlearn_agent_v0_loss_reads_v_on_expert_states_and_target_next_value():
         _agent(IQLearn, value_loss="value0")
 
 
-def test_lsiq_agent_mixture_loss_reads_v_on_agent_states_only():
-    agent = _agent(LSIQ, objective="mixture")  # value_term=True by default
+@pytest.mark.parametrize("n_critics", [1, 2])   # 1: LS-IQ's default
+def test_lsiq_agent_mixture_loss_reads_v_on_agent_states_only(n_critics):
+    agent = _agent(LSIQ, objective="mixture", n_critics=n_critics)  # value_term=True by default
     expert, policy, loss = _critic_loss_on_small_batches(agent, 1.0)
     # by hand, same policy noise: one draw for [agent states; all next states]
     nxt = torch.cat([expert["next_obs"], policy["next_obs"]])
     a, logp = agent.policy_module.sample(torch.cat([policy["obs"], nxt]))
     alpha = agent.sac.alpha
-    t1, t2 = agent.sac.critic_target(nxt, a[7:])
-    v_next = torch.minimum(t1, t2) - alpha * logp[7:]
+    v_next = agent.sac.critic_target(nxt, a[7:]).amin(0) - alpha * logp[7:]   # the minimum over the heads
     q = agent.sac.critic(torch.cat([expert["obs"], policy["obs"]]), torch.cat([expert["actions"], policy["actions"]]))
     v = agent.sac.critic(policy["obs"], a[:7])
+    assert len(q) == len(v) == n_critics
     absorbing = torch.cat([expert["absorbing"], policy["absorbing"]])
     expected = sum(lsiq_critic_loss(qi, v_next, absorbing, 5, 0.99, v_policy=vi - alpha * logp[:7])[0]
                    for qi, vi in zip(q, v))

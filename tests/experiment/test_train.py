@@ -181,7 +181,7 @@ def test_fork_branches_a_run_at_its_checkpoint(env_vars, tmp_path):
     assert wrong.returncode == 2 and "algo.name='lsiq'" in wrong.stderr, wrong.stderr[-2000:]
 
     shapes = train(env_vars, results, *TINY_LSIQ, "n_steps=600", "eval.every=200", "name=lsiq_fork1",
-                   f"fork_from={src}", "algo.params.n_critics=1", check=False)
+                   f"fork_from={src}", "algo.params.n_critics=2", check=False)
     assert shapes.returncode == 2 and "does not fit this config's networks" in shapes.stderr, shapes.stderr[-2000:]
 
 
