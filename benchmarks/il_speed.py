@@ -4,7 +4,8 @@ Part 1 -- off-policy update cost. One `update()` of each SAC-based agent (IQ-Lea
 built from its `experiment_configs/algo/*.yaml` config ([256, 256] actor and critic, 256 agent + 256
 expert samples per update) against a bare PyTorch SAC update written out below with the same networks on
 the same 512 samples (replay gather, critic MSE to a soft target, actor loss, temperature loss,
-Polyak step), with as many critic heads as the agent's config (`n_critics`: 2 = SAC's twin critic, 1 = one). Random data with Hopper's dimensions (obs 11, act 3). Timings after a warm-up, median of
+Polyak step), with as many critic heads as the agent's config (`n_critics`: 2 = SAC's twin critic, 1 = one).
+Random data with Hopper's dimensions (obs 11, act 3). Timings after a warm-up, median of
 `--reps` blocks of `--updates` updates; the agents and the bare update alternate block by block, so
 machine load hits all of them alike. ratio = agent time / bare time (goal <= 1.2x).
 Note that the IL critics do inherently more work than SAC's: IQ-Learn and LS-IQ (value term) evaluate

@@ -14,7 +14,7 @@ evaluation episodes (the evaluation seeds of `loco_il.evaluation`), then on ever
   V start/end the critic's soft value min_i Q_i(s, a~) - alpha log pi(a~|s), averaged over the first and the
              last `--window` states of the episodes that ended by falling (absorbing) before the horizon
   |pre-tanh| percentiles 5/50/95 of the deterministic action's components before tanh (tanh's slope there,
-             1 - tanh^2, is what the actor's gradient is scaled by: ~2e-3 at 4, ~2e-4 at 5)
+             1 - tanh^2, is what the actor's gradient is scaled by: ~1e-3 at 4, ~2e-4 at 5)
   Q gap      max over `--actions` uniformly random actions of min_i Q_i(s, a) minus min_i Q_i(s, mean action):
              median over all states and over the last `--window` states before falls, and the fraction of
              states where it exceeds 1 (half the per-step reward bound of LS-IQ). A large gap means the critic
