@@ -150,7 +150,7 @@ def bench_offpolicy(names, updates: int, reps: int, with_compiled: bool = False)
     (each agent's ratio is taken against that one)."""
     n_replay = 20_000
     agents = {name: make_offpolicy_agent(name, n_replay) for name in names}
-    heads = {name: len(list(agent.sac.critic.children())) for name, agent in agents.items()}
+    heads = {name: agent.sac.critic.n_heads for name, agent in agents.items()}
     runners = {bare_name(n): BareSAC(n_replay, 512, n_critics=n).update for n in sorted({2, *heads.values()},
                                                                                       reverse=True)}
     if with_compiled:

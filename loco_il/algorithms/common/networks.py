@@ -133,6 +133,10 @@ class EnsembleQ(nn.Module):
         for i in range(int(n_heads)):
             self.add_module(f"q{i + 1}", mlp(obs_dim + act_dim, 1, hidden, activation))
 
+    @property
+    def n_heads(self) -> int:
+        return len(self._modules)
+
     def forward(self, obs: torch.Tensor, action: torch.Tensor) -> torch.Tensor:
         x = torch.cat([obs, action], dim=-1)
         return torch.stack([head(x).squeeze(-1) for head in self.children()])
