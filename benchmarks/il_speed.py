@@ -5,6 +5,9 @@ built from its `experiment_configs/algo/*.yaml` config ([256, 256] actor and cri
 expert samples per update) against a bare PyTorch SAC update written out below with the same networks on
 the same 512 samples (replay gather, critic MSE to a soft target, actor loss, temperature loss,
 Polyak step), with as many critic heads as the agent's config (`n_critics`: 2 = SAC's twin critic, 1 = one).
+LSIQ-fO has one network more than SAC, its inverse dynamics model (IDM); "the same networks" then means the
+bare SAC update plus a bare IDM regression step on the agent batch (row `bare SAC 1Q+IDM`); its ratio against
+the bare SAC update without the IDM is printed below the table too.
 Random data with Hopper's dimensions (obs 11, act 3). Timings after a warm-up, median of
 `--reps` blocks of `--updates` updates; the agents and the bare update alternate block by block, so
 machine load hits all of them alike. ratio = agent time / bare time (goal <= 1.2x).
@@ -36,11 +39,12 @@ from types import SimpleNamespace
 import numpy as np
 import torch
 import yaml
+from torch import nn
 from mushroom_rl.core import Core, MDPInfo
 from mushroom_rl.utils.spaces import Box
 
 from loco_il.algorithms.factory import build_agent
-from loco_il.algorithms.common.networks import EnsembleQ, GaussianPolicy
+from loco_il.algorithms.common.networks import EnsembleQ, GaussianPolicy, mlp
 
 ROOT = Path(__file__).resolve().parents[1]
 OBS_DIM, ACT_DIM = 11, 3  # Hopper
@@ -57,7 +61,7 @@ class BareSAC:
     `n_critics` critic heads (2: SAC's twin critic; 1: one critic), the agents' `EnsembleQ`."""
 
     def __init__(self, n: int, batch: int, hidden=(256, 256), gamma=0.99, tau=0.005, lr=3e-4, seed=0,
-                 n_critics: int = 2):
+                 n_critics: int = 2, idm: bool = False):
         g = torch.Generator().manual_seed(seed)
         self.obs = torch.randn(n, OBS_DIM, generator=g)
         self.next_obs = torch.randn(n, OBS_DIM, generator=g)
@@ -76,10 +80,18 @@ class BareSAC:
         self.a_opt = torch.optim.Adam([self.log_alpha], lr=lr, foreach=True)
         self.q_params, self.t_params = list(self.q.parameters()), list(self.q_targ.parameters())
         self.target_entropy = -float(ACT_DIM)
+        self.idm = nn.Sequential(mlp(2 * OBS_DIM, ACT_DIM, hidden), nn.Tanh()) if idm else None
+        if idm:
+            self.idm_opt = torch.optim.Adam(self.idm.parameters(), lr=lr, foreach=True)
 
     def update(self) -> None:
         idx = torch.as_tensor(self.rng.integers(0, len(self.obs), size=self.batch))
         s, a, r, s2, d = self.obs[idx], self.act[idx], self.rew[idx], self.next_obs[idx], self.absorbing[idx]
+        if self.idm is not None:  # inverse dynamics regression on the agent's transitions, as LSIQ-fO does
+            idm_loss = (self.idm(torch.cat([s, s2], -1)) - a).pow(2).sum(-1).mean()
+            self.idm_opt.zero_grad(set_to_none=True)
+            idm_loss.backward()
+            self.idm_opt.step()
         alpha = self.log_alpha.detach().exp()
         with torch.no_grad():
             a2, logp2 = self.pi.sample(s2)
@@ -141,8 +153,8 @@ def compiled_bare_sac(n_replay: int) -> BareSAC:
     return bare
 
 
-def bare_name(n_critics: int) -> str:
-    return "bare SAC" if n_critics == 2 else f"bare SAC {n_critics}Q"
+def bare_name(n_critics: int, idm: bool = False) -> str:
+    return ("bare SAC" if n_critics == 2 else f"bare SAC {n_critics}Q") + ("+IDM" if idm else "")
 
 
 def bench_offpolicy(names, updates: int, reps: int, with_compiled: bool = False) -> dict[str, float]:
@@ -150,9 +162,11 @@ def bench_offpolicy(names, updates: int, reps: int, with_compiled: bool = False)
     (each agent's ratio is taken against that one)."""
     n_replay = 20_000
     agents = {name: make_offpolicy_agent(name, n_replay) for name in names}
-    heads = {name: agent.sac.critic.n_heads for name, agent in agents.items()}
-    runners = {bare_name(n): BareSAC(n_replay, 512, n_critics=n).update for n in sorted({2, *heads.values()},
-                                                                                      reverse=True)}
+    # the bare update each agent is compared with: same critic count, plus the IDM step where the agent has one
+    shapes = {name: (agent.sac.critic.n_heads, hasattr(agent, "idm")) for name, agent in agents.items()}
+    wanted = {(2, False)} | set(shapes.values()) | {(n, False) for n, _ in shapes.values()}
+    runners = {bare_name(*shape): BareSAC(n_replay, 512, n_critics=shape[0], idm=shape[1]).update
+               for shape in sorted(wanted, reverse=True)}
     if with_compiled:
         runners["compiled"] = compiled_bare_sac(n_replay).update
     runners.update({name: agent.update for name, agent in agents.items()})
@@ -169,10 +183,14 @@ def bench_offpolicy(names, updates: int, reps: int, with_compiled: bool = False)
     med = {k: statistics.median(v) for k, v in times.items()}
     print("\n## Off-policy: one update, [256, 256] networks, 256 agent + 256 expert samples "
           f"(bare SAC: batch 512), median of {reps} x {updates} updates, 1 thread")
-    print(f"{'agent':<14}{'ms/update':>11}{'ratio':>8}  against     (goal <= 1.2x)")
+    print(f"{'agent':<16}{'ms/update':>9}{'ratio':>8}  against     (goal <= 1.2x)")
     for k, v in med.items():
-        base = bare_name(heads.get(k, 2))
-        print(f"{k:<14}{1e3 * v:>11.2f}{v / med[base]:>8.2f}  {base}")
+        base = bare_name(*shapes.get(k, (2, False)))
+        print(f"{k:<16}{1e3 * v:>9.2f}{v / med[base]:>8.2f}  {base}")
+    for k, (n, idm) in shapes.items():
+        if idm:
+            print(f"{k} against {bare_name(n)} (SAC's networks only, without the IDM step): "
+                  f"{med[k] / med[bare_name(n)]:.2f}")
     return med
 
 

@@ -46,13 +46,18 @@ def test_q_gap_is_zero_or_less_at_the_critics_maximum_and_positive_away_from_it(
 
 def test_il_speed_runs_and_compares_each_agent_with_the_bare_update_of_its_critic_count():
     out = subprocess.run([sys.executable, str(BENCHMARKS / "il_speed.py"), "--updates", "1", "--reps", "1",
-                          "--offpolicy", "lsiq", "sqil", "--onpolicy", "gail", "--onpolicy-fits", "1",
+                          "--offpolicy", "lsiq", "lsiqfo", "sqil", "--onpolicy", "gail", "--onpolicy-fits", "1",
                           "--onpolicy-reps", "1", "--random-expert"],
                          capture_output=True, text=True, timeout=300, check=True).stdout
     offpolicy, onpolicy = out.split("## Off-policy")[1].split("## On-policy")
     off_rows = {m[0]: (float(m[1]), m[2]) for m in
-                re.findall(r"^(\S+(?: SAC(?: \dQ)?)?)\s+[\d.]+\s+([\d.]+)\s+(bare SAC(?: \dQ)?)$", offpolicy, re.M)}
-    assert {"bare SAC", "lsiq", "sqil"} <= set(off_rows), out
+                re.findall(r"^(\S+(?: SAC(?: \dQ)?(?:\+IDM)?)?)\s+[\d.]+\s+([\d.]+)\s+(bare SAC(?: \dQ)?(?:\+IDM)?)$",
+                           offpolicy, re.M)}
+    assert {"bare SAC", "lsiq", "lsiqfo", "sqil"} <= set(off_rows), out
+    # LSIQ-fO's inverse dynamics model is one network more: its baseline trains one too, and the ratio
+    # against SAC's networks alone is printed as well
+    assert off_rows["lsiqfo"][1] == "bare SAC 1Q+IDM" and off_rows["lsiq"][1] == "bare SAC 1Q", out
+    assert re.search(r"^lsiqfo against bare SAC 1Q \(.*\): [\d.]+$", offpolicy, re.M), out
     for name, (ratio, against) in off_rows.items():
         assert against in off_rows, out            # the bare update it is compared with was timed too
         if name == against:
