@@ -7,7 +7,9 @@ normalized score), the training speed of the last interval and, for unfinished r
 rest of the budget needs at that speed. It reads only `config.yaml` and `log.csv` (no checkpoint), so it
 is instant and safe to run while the runs are training. `--curves` adds each run's learning curve, the
 normalized score at every evaluation (`25k:0.33 50k:0.40 ...`), since run dirs are often not kept as long as
-the numbers are needed.
+the numbers are needed. `--stability 0.9` adds, per run, whether it stays at the expert once it got there:
+the first evaluation scoring >= 0.9 and, over the evaluations after it, the share that also do, their
+minimum and their mean.
 """
 from __future__ import annotations
 
@@ -79,12 +81,37 @@ def format_curve(row: dict[str, Any]) -> str:
     return f"{row['task']} {row['algorithm']} seed {row['seed']}: {points or 'no evaluation yet'}"
 
 
+def stability(curve: list[tuple[int, float | None]], threshold: float) -> dict[str, Any]:
+    """Does a run stay at the expert once it reached it? `reached`: the first step scoring >= threshold (None if
+    never); over the evaluations after it (`n_after`): the share that also score >= threshold, their min and mean.
+    Evaluations without a score are left out."""
+    scored = [(step, score) for step, score in curve if score is not None]
+    first = next((i for i, (_, score) in enumerate(scored) if score >= threshold), None)
+    after = [] if first is None else [score for _, score in scored[first + 1:]]
+    return {"reached": None if first is None else scored[first][0], "n_after": len(after),
+            "share_after": sum(x >= threshold for x in after) / len(after) if after else None,
+            "min_after": min(after) if after else None,
+            "mean_after": sum(after) / len(after) if after else None}
+
+
+def format_stability(row: dict[str, Any], threshold: float) -> str:
+    st = stability(row["curve"], threshold)
+    head = f"{row['task']} {row['algorithm']} seed {row['seed']}:"
+    if st["reached"] is None:
+        return f"{head} never >= {threshold:g}"
+    return (f"{head} >= {threshold:g} first at {st['reached'] / 1000:g}k; after it {st['n_after']} evaluations, "
+            f"{_cell(None if st['share_after'] is None else 100 * st['share_after'], '.0f')} % >= {threshold:g}, "
+            f"min {_cell(st['min_after'], '.2f')}, mean {_cell(st['mean_after'], '.2f')}")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m loco_il.evaluation.progress",
                                      description=__doc__.splitlines()[0])
     parser.add_argument("root", help="folder searched (recursively) for train.py run dirs, e.g. runs/")
     parser.add_argument("--curves", action="store_true",
                         help="also print each run's normalized score at every evaluation")
+    parser.add_argument("--stability", type=float, metavar="SCORE",
+                        help="also print whether each run stays at or above this normalized score once reached")
     args = parser.parse_args(argv)
     if not Path(args.root).is_dir():
         print(f"error: {args.root} is not a folder", file=sys.stderr)
@@ -100,6 +127,10 @@ def main(argv: list[str] | None = None) -> int:
         print("\nnormalized score at each evaluation:")
         for row in rows:
             print(format_curve(row))
+    if args.stability is not None:
+        print(f"\nonce at >= {args.stability:g}, does it stay?")
+        for row in rows:
+            print(format_stability(row, args.stability))
     return 0
 
 

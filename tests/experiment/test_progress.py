@@ -65,3 +65,25 @@ def test_progress_curves(tmp_path, capsys):
     assert "Hopper.run.perfect sqil seed 0: no evaluation yet" in out
     assert progress.main([str(tmp_path)]) == 0
     assert "normalized score at each evaluation" not in capsys.readouterr().out
+
+
+def test_stability_after_first_reaching_the_threshold():
+    curve = [(25_000, 0.3), (50_000, 0.95), (75_000, 0.5), (100_000, None), (125_000, 0.92), (150_000, 0.7)]
+    st = progress.stability(curve, 0.9)
+    assert st["reached"] == 50_000 and st["n_after"] == 3          # the unscored evaluation is left out
+    assert abs(st["share_after"] - 1 / 3) < 1e-12
+    assert st["min_after"] == 0.5 and abs(st["mean_after"] - (0.5 + 0.92 + 0.7) / 3) < 1e-12
+    assert progress.stability(curve, 0.99)["reached"] is None
+    last = progress.stability([(25_000, 0.2), (50_000, 0.97)], 0.9)
+    assert last["reached"] == 50_000 and last["n_after"] == 0 and last["share_after"] is None
+
+
+def test_progress_stability_cli(tmp_path, capsys):
+    make_run(tmp_path, "lsiq", 1_500_000, [(25_000, 90.0, 1100.0, 0.3), (50_000, 95.0, 3200.0, 0.98),
+                                           (75_000, 95.0, 1500.0, 0.45), (100_000, 95.0, 3250.0, 0.99)])
+    make_run(tmp_path, "sqil", 1_000_000, [(25_000, 90.0, 900.0, 0.25)])
+    assert progress.main([str(tmp_path), "--stability", "0.9"]) == 0
+    out = capsys.readouterr().out
+    assert ("Hopper.run.perfect lsiq seed 0: >= 0.9 first at 50k; after it 2 evaluations, 50 % >= 0.9, "
+            "min 0.45, mean 0.72") in out
+    assert "Hopper.run.perfect sqil seed 0: never >= 0.9" in out
