@@ -187,8 +187,10 @@ def load_run_config(run_dir: str | Path) -> dict:
         return yaml.safe_load(fh)
 
 
-def load_run_agent(run_dir: str | Path, device: str = "cpu") -> tuple[Any, str]:
-    """The trained agent of a run (`final_agent.pt`, else the latest `checkpoint.pt`) and which file it was."""
+def load_run_agent(run_dir: str | Path, device: str = "cpu",
+                   checkpoint: str | Path | None = None) -> tuple[Any, str]:
+    """The trained agent of a run (`final_agent.pt`, else the latest `checkpoint.pt`) and which file it was.
+    `checkpoint`: a train.py checkpoint file of this run to load instead (e.g. a copy kept from an earlier step)."""
     import torch
 
     from loco_il.algorithms import factory
@@ -196,9 +198,11 @@ def load_run_agent(run_dir: str | Path, device: str = "cpu") -> tuple[Any, str]:
     from loco_il.environments.registry import make
     run_dir = Path(run_dir)
     final = run_dir / "final_agent.pt"
-    if final.is_file():
+    if checkpoint is None and final.is_file():
         return ILAgent.load(final, device=device), str(final)
-    ckpt_path = run_dir / "checkpoint.pt"
+    ckpt_path = run_dir / "checkpoint.pt" if checkpoint is None else Path(checkpoint)
+    if checkpoint is not None and not ckpt_path.is_file():
+        raise FileNotFoundError(f"checkpoint {ckpt_path} does not exist")
     if not ckpt_path.is_file():
         raise FileNotFoundError(f"{run_dir} has neither final_agent.pt nor checkpoint.pt (was the run started?)")
     cfg = load_run_config(run_dir)

@@ -184,6 +184,24 @@ def test_fork_branches_a_run_at_its_checkpoint(env_vars, tmp_path):
                    f"fork_from={src}", "algo.params.n_critics=2", check=False)
     assert shapes.returncode == 2 and "does not fit this config's networks" in shapes.stderr, shapes.stderr[-2000:]
 
+    # a kept checkpoint file of a run can be loaded and evaluated in place of the run's latest one
+    from loco_il.evaluation import load_run_agent
+    agent, source = load_run_agent(src, checkpoint=d / "checkpoint.pt")
+    assert "step 600" in source
+    latest, latest_source = load_run_agent(src)
+    assert "step 400" in latest_source
+    differs = any(not torch.equal(a, b) for a, b in zip(agent.policy_module.state_dict().values(),
+                                                       latest.policy_module.state_dict().values()))
+    assert differs                                         # 200 more updates moved the policy
+    with pytest.raises(FileNotFoundError, match="does not exist"):
+        load_run_agent(src, checkpoint=d / "missing.pt")
+    modes = subprocess.run([sys.executable, "benchmarks/eval_modes.py", str(src), "--episodes", "1", "--checkpoints",
+                            str(d / "checkpoint.pt"), str(src / "checkpoint.pt")], cwd=ROOT, env=env_vars,
+                           capture_output=True, text=True, timeout=120, check=True).stdout
+    rows = [line for line in modes.splitlines() if "(step " in line]
+    assert len(rows) == 2 and "step 600" in rows[0] and "step 400" in rows[1], modes
+    assert all(len(line.split()[-6:]) == 6 for line in rows), modes   # score, length, falls for each mode
+
 
 def test_killed_run_resumes(env_vars, tmp_path):
     """SIGKILL once the first checkpoint exists; the same command finishes the run with the full budget."""
