@@ -5,6 +5,7 @@ std collapsed, how many of its mean actions sit at the action bounds, and does t
 policy's states fall before the episode ends (i.e. does Q anticipate the fall)?
 
     python benchmarks/offpolicy_diagnostics.py runs/il/Hopper.run.perfect/lsiq/seed0 runs/il/Hopper.run.perfect/iqlearn/seed0
+    python benchmarks/offpolicy_diagnostics.py runs/il/Hopper.run.perfect/lsiq_1critic/seed1 --checkpoints kept_725k.pt kept_875k.pt
 
 For each run directory (its `final_agent.pt`, else its latest `checkpoint.pt`): `--episodes` deterministic
 evaluation episodes (the evaluation seeds of `loco_il.evaluation`), then on every visited state s:
@@ -51,8 +52,8 @@ def q_gap(critic, obs: torch.Tensor, mean_action: torch.Tensor, n_actions: int, 
 
 
 @torch.no_grad()
-def diagnose(run_dir: str, episodes: int, window: int, n_actions: int = 256) -> dict:
-    agent, source = load_run_agent(run_dir)
+def diagnose(run_dir: str, episodes: int, window: int, n_actions: int = 256, checkpoint: str | None = None) -> dict:
+    agent, source = load_run_agent(run_dir, checkpoint=checkpoint)
     cfg = load_run_config(run_dir)
     env = make(cfg["task_id"])
     result = evaluate_agent(agent, env, episodes, collect_obs=True)
@@ -91,11 +92,15 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--episodes", type=int, default=5)
     parser.add_argument("--window", type=int, default=20, help="states averaged at the start and end of a fall")
     parser.add_argument("--actions", type=int, default=256, help="random actions per state for the Q gap")
+    parser.add_argument("--checkpoints", nargs="*", default=[None],
+                        help="with one run dir: kept checkpoint files of it to diagnose instead of its latest")
     args = parser.parse_args(argv)
+    if args.checkpoints != [None] and len(args.run_dirs) != 1:
+        parser.error("--checkpoints needs exactly one run dir")
     torch.set_num_threads(1)
     fmt = lambda x, digits=1: "n/a" if x is None else f"{x:.{digits}f}"  # noqa: E731
-    for run_dir in args.run_dirs:
-        d = diagnose(run_dir, args.episodes, args.window, args.actions)
+    for run_dir, ckpt in [(r, c) for r in args.run_dirs for c in args.checkpoints]:
+        d = diagnose(run_dir, args.episodes, args.window, args.actions, ckpt)
         print(f"{d['run']}\n  from {d['source']}")
         print(f"  episode lengths {d['lengths']}  return {d['return']:.1f}  normalized {fmt(d['normalized'], 3)}"
               f"  falls {d['falls']}/{len(d['lengths'])}")
