@@ -6,7 +6,8 @@ evaluation curve need not be a drop of the learned behaviour. For each checkpoin
 in each mode on the evaluation seeds of `loco_il.evaluation`, normalized score, mean length, falls.
 
     python benchmarks/eval_modes.py runs/il/Hopper.run.perfect/iqlearn/seed1
-    python benchmarks/eval_modes.py runs/il/Hopper.run.perfect/lsiq_1critic/seed1 --checkpoints copy_725k.pt copy_775k.pt
+    python benchmarks/eval_modes.py runs/il/Hopper.run.perfect/lsiq_1critic/seed1 \
+        --checkpoints copy_725k.pt copy_775k.pt
 """
 from __future__ import annotations
 

@@ -6,7 +6,7 @@ expert samples per update) against a bare PyTorch SAC update written out below w
 the same 512 samples (replay gather, critic MSE to a soft target, actor loss, temperature loss,
 Polyak step), with as many critic heads as the agent's config (`n_critics`: 2 = SAC's twin critic, 1 = one).
 LSIQ-fO has one network more than SAC, its inverse dynamics model (IDM); "the same networks" then means the
-bare SAC update plus a bare IDM regression step on the agent batch (row `bare SAC 1Q+IDM`); its ratio against
+bare SAC update plus a bare IDM regression step on 256 agent rows (row `bare SAC 1Q+IDM`); its ratio against
 the bare SAC update without the IDM is printed below the table too.
 Random data with Hopper's dimensions (obs 11, act 3). Timings after a warm-up, median of
 `--reps` blocks of `--updates` updates; the agents and the bare update alternate block by block, so
@@ -87,8 +87,9 @@ class BareSAC:
     def update(self) -> None:
         idx = torch.as_tensor(self.rng.integers(0, len(self.obs), size=self.batch))
         s, a, r, s2, d = self.obs[idx], self.act[idx], self.rew[idx], self.next_obs[idx], self.absorbing[idx]
-        if self.idm is not None:  # inverse dynamics regression on the agent's transitions, as LSIQ-fO does
-            idm_loss = (self.idm(torch.cat([s, s2], -1)) - a).pow(2).sum(-1).mean()
+        if self.idm is not None:  # inverse dynamics regression on the agent half of the batch, as LSIQ-fO does
+            h = self.batch // 2
+            idm_loss = (self.idm(torch.cat([s[:h], s2[:h]], -1)) - a[:h]).pow(2).sum(-1).mean()
             self.idm_opt.zero_grad(set_to_none=True)
             idm_loss.backward()
             self.idm_opt.step()

@@ -5,7 +5,8 @@ std collapsed, how many of its mean actions sit at the action bounds, and does t
 policy's states fall before the episode ends (i.e. does Q anticipate the fall)?
 
     python benchmarks/offpolicy_diagnostics.py runs/il/Hopper.run.perfect/lsiq/seed0 runs/il/Hopper.run.perfect/iqlearn/seed0
-    python benchmarks/offpolicy_diagnostics.py runs/il/Hopper.run.perfect/lsiq_1critic/seed1 --checkpoints kept_725k.pt kept_875k.pt
+    python benchmarks/offpolicy_diagnostics.py runs/il/Hopper.run.perfect/lsiq_1critic/seed1 \
+        --checkpoints kept_725k.pt kept_875k.pt
 
 For each run directory (its `final_agent.pt`, else its latest `checkpoint.pt`): `--episodes` deterministic
 evaluation episodes (the evaluation seeds of `loco_il.evaluation`), then on every visited state s:
