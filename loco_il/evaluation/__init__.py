@@ -197,14 +197,17 @@ def load_run_agent(run_dir: str | Path, device: str = "cpu",
     from loco_il.algorithms.common.agent_base import ILAgent
     from loco_il.environments.registry import make
     run_dir = Path(run_dir)
-    final = run_dir / "final_agent.pt"
-    if checkpoint is None and final.is_file():
-        return ILAgent.load(final, device=device), str(final)
-    ckpt_path = run_dir / "checkpoint.pt" if checkpoint is None else Path(checkpoint)
-    if checkpoint is not None and not ckpt_path.is_file():
-        raise FileNotFoundError(f"checkpoint {ckpt_path} does not exist")
-    if not ckpt_path.is_file():
-        raise FileNotFoundError(f"{run_dir} has neither final_agent.pt nor checkpoint.pt (was the run started?)")
+    if checkpoint is not None:
+        ckpt_path = Path(checkpoint)
+        if not ckpt_path.is_file():
+            raise FileNotFoundError(f"checkpoint {ckpt_path} does not exist")
+    else:
+        final = run_dir / "final_agent.pt"
+        if final.is_file():
+            return ILAgent.load(final, device=device), str(final)
+        ckpt_path = run_dir / "checkpoint.pt"
+        if not ckpt_path.is_file():
+            raise FileNotFoundError(f"{run_dir} has neither final_agent.pt nor checkpoint.pt (was the run started?)")
     cfg = load_run_config(run_dir)
     env = make(cfg["task_id"])
     torch.manual_seed(int(cfg.get("seed", 0)))
