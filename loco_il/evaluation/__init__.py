@@ -76,6 +76,16 @@ def evaluate_agent(agent: Any, env: Any, episodes: int, seed: int = 1000, determ
             module.train()
 
 
+def evaluate_averaged_actor(agent: Any, env: Any, episodes: int, seed: int = 1000,
+                            deterministic: bool = True) -> dict[str, Any] | None:
+    """`evaluate_agent` with the moving average of the agent's actor acting (off-policy agents built with
+    `actor_ema`), on the same episode seeds; None for an agent that keeps no average."""
+    if getattr(agent, "policy_ema", None) is None:
+        return None
+    with agent.averaged_actor():
+        return evaluate_agent(agent, env, episodes, seed, deterministic)
+
+
 def identical_episodes_note(result: Mapping[str, Any]) -> str | None:
     """A warning when every evaluation episode had the same outcome (deterministic start and policy)."""
     n = int(result.get("episodes") or 0)

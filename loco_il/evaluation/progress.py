@@ -9,7 +9,8 @@ is instant and safe to run while the runs are training. `--curves` adds each run
 normalized score at every evaluation (`25k:0.33 50k:0.40 ...`), since run dirs are often not kept as long as
 the numbers are needed. `--stability 0.9` adds, per run, whether it stays at the expert once it got there:
 the first evaluation scoring >= 0.9 and, over the evaluations after it, the share that also do, their
-minimum and their mean.
+minimum and their mean. Runs trained with `algo.params.actor_ema` get a second line for each, the moving
+average of the actor (`normalized_score_ema`), marked "actor average".
 """
 from __future__ import annotations
 
@@ -40,12 +41,13 @@ def run_progress(run_dir: str | Path) -> dict[str, Any] | None:
     finished = (run_dir / "eval.json").is_file()
     rest_h = None if finished or not speed else max(budget - step, 0) / speed / 3600.0
     curve = [(int(r["step"]), r.get("normalized_score")) for r in rows if r.get("step") is not None]
+    curve_ema = [(int(r["step"]), r.get("normalized_score_ema")) for r in rows if r.get("step") is not None]
     return {"run_dir": str(run_dir), "task": cfg.get("task_id", "?"), "algorithm": cfg.get("name", "?"),
             "seed": cfg.get("seed"), "step": step, "budget": budget,
             "done": step / budget if budget else None, "return": last.get("eval_return_mean"),
             "normalized": last.get("normalized_score"), "steps_per_s": speed, "rest_hours": rest_h,
             "state": "finished" if finished else ("no evaluation yet" if not rows else "in progress"),
-            "curve": curve}
+            "curve": curve, "curve_ema": curve_ema if any(x is not None for _, x in curve_ema) else None}
 
 
 def collect_progress(root: str | Path) -> list[dict[str, Any]]:
@@ -75,10 +77,15 @@ def to_markdown(rows: list[dict[str, Any]]) -> str:
     return "\n".join(lines)
 
 
-def format_curve(row: dict[str, Any]) -> str:
-    """`task algorithm seed s: 25k:0.33 50k:0.40 ...` (steps in thousands; n/a where no score was logged)."""
-    points = " ".join(f"{step / 1000:g}k:{_cell(score, '.2f')}" for step, score in row["curve"])
-    return f"{row['task']} {row['algorithm']} seed {row['seed']}: {points or 'no evaluation yet'}"
+def _head(row: dict[str, Any], key: str) -> str:
+    return f"{row['task']} {row['algorithm']} seed {row['seed']}" + (" (actor average)" if key == "curve_ema" else "")
+
+
+def format_curve(row: dict[str, Any], key: str = "curve") -> str:
+    """`task algorithm seed s: 25k:0.33 50k:0.40 ...` (steps in thousands; n/a where no score was logged);
+    key="curve_ema": the actor average's scores."""
+    points = " ".join(f"{step / 1000:g}k:{_cell(score, '.2f')}" for step, score in row[key])
+    return f"{_head(row, key)}: {points or 'no evaluation yet'}"
 
 
 def stability(curve: list[tuple[int, float | None]], threshold: float) -> dict[str, Any]:
@@ -94,14 +101,18 @@ def stability(curve: list[tuple[int, float | None]], threshold: float) -> dict[s
             "mean_after": sum(after) / len(after) if after else None}
 
 
-def format_stability(row: dict[str, Any], threshold: float) -> str:
-    st = stability(row["curve"], threshold)
-    head = f"{row['task']} {row['algorithm']} seed {row['seed']}:"
+def format_stability(row: dict[str, Any], threshold: float, key: str = "curve") -> str:
+    st = stability(row[key], threshold)
+    head = _head(row, key) + ":"
     if st["reached"] is None:
         return f"{head} never >= {threshold:g}"
     return (f"{head} >= {threshold:g} first at {st['reached'] / 1000:g}k; after it {st['n_after']} evaluations, "
             f"{_cell(None if st['share_after'] is None else 100 * st['share_after'], '.0f')} % >= {threshold:g}, "
             f"min {_cell(st['min_after'], '.2f')}, mean {_cell(st['mean_after'], '.2f')}")
+
+
+def _curve_keys(row: dict[str, Any]) -> tuple[str, ...]:
+    return ("curve", "curve_ema") if row.get("curve_ema") else ("curve",)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -126,11 +137,13 @@ def main(argv: list[str] | None = None) -> int:
     if args.curves:
         print("\nnormalized score at each evaluation:")
         for row in rows:
-            print(format_curve(row))
+            for key in _curve_keys(row):
+                print(format_curve(row, key))
     if args.stability is not None:
         print(f"\nonce at >= {args.stability:g}, does it stay?")
         for row in rows:
-            print(format_stability(row, args.stability))
+            for key in _curve_keys(row):
+                print(format_stability(row, args.stability, key))
     return 0
 
 

@@ -32,7 +32,8 @@ from typing import Any, Mapping
 from loco_il.utils.atomic import atomic_open
 
 CSV_COLUMNS = ("step", "env_steps", "updates", "episodes", "wall_time", "steps_per_s", "train_return",
-               "eval_return_mean", "eval_return_std", "eval_episodes", "normalized_score")
+               "eval_return_mean", "eval_return_std", "eval_episodes", "normalized_score",
+               "normalized_score_ema")   # the actor's moving average (agents with actor_ema; else empty)
 
 
 def _jsonable(value: Any) -> Any:
@@ -131,12 +132,19 @@ class RunLogger:
             fh.write(json.dumps(row) + "\n")
             fh.flush()
         new = not self.csv_path.is_file() or self.csv_path.stat().st_size == 0
+        if not new and self._csv_header() != list(CSV_COLUMNS):
+            # a run resumed from a version with other columns: rewrite the file from log.jsonl (all keys)
+            self._write_csv(read_jsonl(self.jsonl_path))
+            return self._log_elsewhere(row)
         with open(self.csv_path, "a", newline="") as fh:
             writer = csv.DictWriter(fh, fieldnames=CSV_COLUMNS, extrasaction="ignore")
             if new:
                 writer.writeheader()
             writer.writerow({k: ("" if row.get(k) is None else row.get(k)) for k in CSV_COLUMNS})
             fh.flush()
+        return self._log_elsewhere(row)
+
+    def _log_elsewhere(self, row: dict) -> dict:
         if self._wandb is not None:
             data = {k: v for k, v in row.items() if isinstance(v, (int, float)) and v is not None and k != "step"}
             self._wandb.log(data, step=int(row.get("step", 0)))
@@ -147,6 +155,13 @@ class RunLogger:
         rows = [r for r in read_jsonl(self.jsonl_path) if int(r.get("step", 0)) <= step]
         with atomic_open(self.jsonl_path, "w") as fh:
             fh.write("".join(json.dumps(r) + "\n" for r in rows))
+        self._write_csv(rows)
+
+    def _csv_header(self) -> list[str]:
+        with open(self.csv_path, newline="") as fh:
+            return next(csv.reader(fh), [])
+
+    def _write_csv(self, rows: list[dict]) -> None:
         buf = io.StringIO()
         writer = csv.DictWriter(buf, fieldnames=CSV_COLUMNS, extrasaction="ignore", lineterminator="\n")
         writer.writeheader()

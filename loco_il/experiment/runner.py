@@ -357,6 +357,8 @@ class Runner:
                                      f"{row['eval_return_std']:.2f}" + (f", normalized {row['normalized_score']:.3f}"
                                                                         if row.get("normalized_score") is not None
                                                                         else "")
+                                     + (f", actor average {row['normalized_score_ema']:.3f}"
+                                        if row.get("normalized_score_ema") is not None else "")
                                      + (" (all episodes identical)" if identical_episodes_note(
                                          {"episodes": row["eval_episodes"],
                                           "distinct_episodes": row["eval_distinct_episodes"]}) else ""))
@@ -431,10 +433,11 @@ class Runner:
         return done, dict(info)
 
     def _evaluate_row(self, counters: dict, wall: float, sps: float, window: dict, fit_info: dict) -> dict:
-        from loco_il.evaluation import evaluate_agent, normalized
+        from loco_il.evaluation import evaluate_agent, evaluate_averaged_actor, normalized
         ev = self.eval_cfg
-        res = evaluate_agent(self.agent, self.eval_env, int(ev.get("episodes", 5)), int(ev.get("seed", 1000)),
-                             bool(ev.get("deterministic", True)))
+        eval_args = (int(ev.get("episodes", 5)), int(ev.get("seed", 1000)), bool(ev.get("deterministic", True)))
+        res = evaluate_agent(self.agent, self.eval_env, *eval_args)
+        ema = evaluate_averaged_actor(self.agent, self.eval_env, *eval_args)
         score, _, _ = normalized(self.task_id, res["return_mean"])
         updates = getattr(self.agent, "n_updates", None)
         if updates is None:
@@ -446,6 +449,9 @@ class Runner:
                "eval_return_mean": res["return_mean"], "eval_return_std": res["return_std"],
                "eval_episodes": res["episodes"], "eval_length_mean": res["length_mean"],
                "eval_distinct_episodes": res["distinct_episodes"], "normalized_score": score}
+        if ema is not None:   # the actor's moving average (algo.params.actor_ema), same episodes
+            row.update({"eval_ema_return_mean": ema["return_mean"], "eval_ema_length_mean": ema["length_mean"],
+                        "normalized_score_ema": normalized(self.task_id, ema["return_mean"])[0]})
         row.update({f"fit/{k}": v for k, v in fit_info.items()})
         window["returns"] = []
         self.logger.progress(0, eval_return=res["return_mean"], steps_per_s=sps)
@@ -453,11 +459,13 @@ class Runner:
 
     def _final(self, agent, eval_env, counters: dict, wall: float) -> dict:
         from loco_il.datasets.providers.expert import task_key
-        from loco_il.evaluation import evaluate_agent, normalized, trajectory_similarity, write_json
+        from loco_il.evaluation import (evaluate_agent, evaluate_averaged_actor, normalized, trajectory_similarity,
+                                        write_json)
         ev = self.eval_cfg
         sim_on = bool(ev.get("similarity", True))
-        res = evaluate_agent(agent, eval_env, int(ev.get("final_episodes", 10)), int(ev.get("seed", 1000)),
-                             bool(ev.get("deterministic", True)), collect_obs=sim_on)
+        eval_args = (int(ev.get("final_episodes", 10)), int(ev.get("seed", 1000)), bool(ev.get("deterministic", True)))
+        res = evaluate_agent(agent, eval_env, *eval_args, collect_obs=sim_on)
+        ema = evaluate_averaged_actor(agent, eval_env, *eval_args)
         score, note, base = normalized(self.task_id, res["return_mean"])
         env = self.env
         result = {"task_id": env.task_id,
@@ -470,6 +478,10 @@ class Runner:
                   "expert_dataset_return": self.train_data.info.get("expert_return_mean"),
                   "n_expert_trajectories": self.train_data.n_trajectories,
                   "created": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
+        if ema is not None:
+            result["ema_actor"] = {"return_mean": ema["return_mean"], "return_std": ema["return_std"],
+                                   "length_mean": ema["length_mean"],
+                                   "normalized_score": normalized(self.task_id, ema["return_mean"])[0]}
         if sim_on:
             ref = self.test_data if self.test_data is not None and self.test_data.n_transitions else self.train_data
             result["similarity"] = trajectory_similarity(

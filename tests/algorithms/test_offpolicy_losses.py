@@ -281,9 +281,10 @@ def test_lsiq_agent_mixture_loss_reads_v_on_agent_states_only(n_critics):
         agent.critic_values(expert, policy, v_on="agent")
 
 
-@pytest.mark.parametrize("n_critics", [2, 1])
-def test_lsiq_agent_default_fixed_expert_loss_reads_v_on_all_states(n_critics):
-    agent = _agent(LSIQ, n_critics=n_critics)  # default objective="fixed_expert"
+@pytest.mark.parametrize("n_critics, gamma", [(2, None), (1, None), (1, 0.995)])  # None: the MDPInfo's 0.99
+def test_lsiq_agent_default_fixed_expert_loss_reads_v_on_all_states(n_critics, gamma):
+    agent = _agent(LSIQ, n_critics=n_critics, gamma=gamma)  # default objective="fixed_expert"
+    assert agent.gamma == (0.99 if gamma is None else gamma)
     assert len(list(agent.sac.critic.children())) == n_critics
     expert, policy, loss = _critic_loss_on_small_batches(agent, 1.0)
     obs = torch.cat([expert["obs"], policy["obs"]])
@@ -297,9 +298,15 @@ def test_lsiq_agent_default_fixed_expert_loss_reads_v_on_all_states(n_critics):
     v = agent.sac.critic(obs, a[:12])
     assert q.shape == (n_critics, 5) and v.shape == (n_critics, 12)
     absorbing = torch.cat([expert["absorbing"], policy["absorbing"]])
-    expected = sum(lsiq_fixed_expert_loss(qi, vi - alpha * logp[:12], v_next, absorbing, 5, 0.99)[0]
+    expected = sum(lsiq_fixed_expert_loss(qi, vi - alpha * logp[:12], v_next, absorbing, 5, agent.gamma)[0]
                    for qi, vi in zip(q, v))
     assert loss.item() == pytest.approx(expected.item(), rel=1e-5)
+
+
+@pytest.mark.parametrize("gamma", [0.0, 1.0, 1.5])
+def test_gamma_outside_the_unit_interval_rejected(gamma):
+    with pytest.raises(ValueError, match="gamma"):
+        _agent(SQIL, gamma=gamma)
 
 
 def test_single_critic_actor_step_follows_its_only_head():
@@ -418,3 +425,61 @@ def test_runs_checkpointed_before_log_std_bounds_existed_still_resume():
     assert config_differences(old, new) == []
     new["algo"]["policy"]["log_std_bounds"] = [-5.0, 2.0]
     assert config_differences(old, new) == ["algo.policy.log_std_bounds: [-20.0, 2.0] -> [-5.0, 2.0]"]
+
+
+# ---------------------------------------------------------------------- the actor's moving average (actor_ema)
+def _params(module: nn.Module) -> list[torch.Tensor]:
+    return [p.detach().clone() for p in module.parameters()]
+
+
+def test_actor_average_follows_its_rate_and_leaves_training_unchanged():
+    agents = []
+    for kw in ({}, {"actor_ema": 0.1}):   # one after the other: the updates draw from torch's global RNG
+        agents.append(_agent(LSIQ, seed=4, **kw))
+        agents[-1].fit(_dataset(n=32))     # 16 updates once the replay holds 16 transitions
+    plain, averaged = agents
+    assert plain.policy_ema is None
+    assert averaged.n_updates == plain.n_updates > 0
+    for a, b in zip(_params(plain.policy_module), _params(averaged.policy_module)):
+        assert torch.equal(a, b)               # the average never acts or draws random numbers in training
+    before = _params(averaged.policy_ema)
+    averaged.update()
+    live = _params(averaged.policy_module)
+    for ema, old, new in zip(_params(averaged.policy_ema), before, live):
+        torch.testing.assert_close(ema, old + 0.1 * (new - old))
+    assert any(not torch.equal(e, p) for e, p in zip(_params(averaged.policy_ema), live))
+
+
+def test_averaged_actor_acts_inside_the_block_and_restores_the_live_actor():
+    agent = _agent(LSIQ, actor_ema=0.05)
+    agent.fit(_dataset(n=48))
+    agent.deterministic = True
+    obs = np.linspace(-1.0, 1.0, OBS_DIM)
+    live_action, live = agent._act(obs), _params(agent.policy_module)
+    with torch.no_grad():
+        ema_action = torch.tanh(agent.policy_ema._mean_log_std(torch.as_tensor(obs, dtype=torch.float32)[None])[0][0])
+    with agent.averaged_actor():
+        np.testing.assert_allclose(agent._act(obs), ema_action.numpy(), atol=1e-6)
+    np.testing.assert_array_equal(agent._act(obs), live_action)
+    with pytest.raises(RuntimeError, match="inside"):
+        with agent.averaged_actor():
+            raise RuntimeError("inside")
+    assert all(torch.equal(a, b) for a, b in zip(live, _params(agent.policy_module)))
+    with pytest.raises(ValueError, match="actor_ema"):
+        with _agent(SQIL).averaged_actor():
+            pass
+
+
+@pytest.mark.parametrize("rate", [0.0, -0.1, 1.5])
+def test_actor_average_rate_outside_the_unit_interval_rejected(rate):
+    with pytest.raises(ValueError, match="actor_ema"):
+        _agent(IQLearn, actor_ema=rate)
+
+
+def test_actor_average_survives_a_checkpoint(tmp_path):
+    agent = _agent(SQIL, actor_ema=0.2)
+    agent.fit(_dataset(n=40))
+    agent.save(tmp_path / "a.pt")
+    loaded = SQIL.load(tmp_path / "a.pt")
+    for a, b in zip(_params(agent.policy_ema), _params(loaded.policy_ema)):
+        assert torch.equal(a, b)

@@ -87,3 +87,24 @@ def test_progress_stability_cli(tmp_path, capsys):
     assert ("Hopper.run.perfect lsiq seed 0: >= 0.9 first at 50k; after it 2 evaluations, 50 % >= 0.9, "
             "min 0.45, mean 0.72") in out
     assert "Hopper.run.perfect sqil seed 0: never >= 0.9" in out
+
+
+def test_runs_with_an_actor_average_get_a_second_curve_and_stability_line(tmp_path, capsys):
+    run = make_run(tmp_path, "lsiq", 1_500_000, [(25_000, 90.0, 3000.0, 0.95), (50_000, 90.0, 1500.0, 0.45),
+                                                 (75_000, 90.0, 3100.0, 0.97)])
+    make_run(tmp_path, "sqil", 1_000_000, [(25_000, 90.0, 900.0, 0.3)])
+    with open(run / "log.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    for row, ema in zip(rows, (0.5, 0.93, 0.96)):
+        row["normalized_score_ema"] = ema
+    with open(run / "log.csv", "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=CSV_COLUMNS)
+        w.writeheader()
+        w.writerows(rows)
+    assert progress.main([str(tmp_path), "--curves", "--stability", "0.9"]) == 0
+    out = capsys.readouterr().out
+    assert "Hopper.run.perfect lsiq seed 0: 25k:0.95 50k:0.45 75k:0.97" in out
+    assert "Hopper.run.perfect lsiq seed 0 (actor average): 25k:0.50 50k:0.93 75k:0.96" in out
+    assert "lsiq seed 0 (actor average): >= 0.9 first at 50k; after it 1 evaluations, 100 % >= 0.9" in out
+    assert "lsiq seed 0: >= 0.9 first at 25k; after it 2 evaluations, 50 % >= 0.9, min 0.45" in out
+    assert "sqil seed 0 (actor average)" not in out          # runs without an average: one line each

@@ -208,6 +208,28 @@ def test_fork_branches_a_run_at_its_checkpoint(env_vars, tmp_path):
         assert all(1 <= int(m.group(i)) <= 1000 for i in (2, 5)), modes
 
 
+def test_discount_and_actor_average_from_the_command_line(env_vars, tmp_path):
+    """algo.params.gamma replaces the task's discount; algo.params.actor_ema adds an evaluation of the actor's
+    moving average at every evaluation point and in eval.json."""
+    results = tmp_path / "r"
+    proc = train(env_vars, results, *TINY_LSIQ, "n_steps=400", "eval.every=200", "name=lsiq_ema",
+                 "algo.params.gamma=0.98", "algo.params.actor_ema=0.01")
+    d = run_dir(results, "lsiq_ema")
+    rows = [json.loads(line) for line in (d / "log.jsonl").read_text().splitlines()]
+    assert [r["step"] for r in rows] == [200, 400]
+    assert all(r["eval_ema_return_mean"] > 0 and 0 < r["eval_ema_length_mean"] <= 1000 for r in rows)
+    assert [r.get("normalized_score_ema") is not None for r in csv_rows(d / "log.csv")] == [True, True]
+    result = json.loads((d / "eval.json").read_text())
+    assert result["ema_actor"]["return_mean"] > 0 and "normalized_score" in result["ema_actor"]
+    assert proc.stdout.count("actor average") >= 2, proc.stdout[-2000:]
+    from loco_il.evaluation import load_run_agent
+    agent, _ = load_run_agent(d)
+    assert agent.gamma == 0.98 and agent.actor_ema == 0.01 and agent.policy_ema is not None
+    plain = train(env_vars, results, *TINY_LSIQ, "n_steps=200", "eval.every=200", "name=lsiq_plain")
+    assert "actor average" not in plain.stdout
+    assert "ema_actor" not in json.loads((run_dir(results, "lsiq_plain") / "eval.json").read_text())
+
+
 def test_killed_run_resumes(env_vars, tmp_path):
     """SIGKILL once the first checkpoint exists; the same command finishes the run with the full budget."""
     results = tmp_path / "results"

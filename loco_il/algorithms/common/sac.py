@@ -12,6 +12,7 @@ target network) itself.
 """
 from __future__ import annotations
 
+import contextlib
 import copy
 import math
 from typing import Sequence
@@ -147,6 +148,10 @@ class OffPolicyILAgent(ILAgent):
     An update samples `batch_size` agent and `expert_batch_size` expert transitions, takes one
     critic step on the subclass's loss, one actor (+ temperature) step every `actor_delay`
     updates on the states of both batches, and one Polyak step of the target critic.
+
+    `actor_ema` (e.g. 1e-4): also keep an exponential moving average of the actor's parameters,
+    updated after every actor step with that rate; it never acts during training (training is the same
+    with or without it), `averaged_actor()` swaps it in for an evaluation.
     """
 
     needs_expert_actions = True
@@ -158,11 +163,16 @@ class OffPolicyILAgent(ILAgent):
                  replay_capacity: int = 1_000_000, initial_replay_size: int = 1000,
                  random_initial_steps: int = 0, updates_per_step: int = 1, actor_delay: int = 1,
                  critic_grad_clip: float | None = None, actor_on_expert_states: bool = True,
-                 n_critics: int = 2, device: str = "cpu", seed: int | None = None):
+                 n_critics: int = 2, gamma: float | None = None, actor_ema: float | None = None,
+                 device: str = "cpu", seed: int | None = None):
         super().__init__(mdp_info, policy_module, device=device, seed=seed)
         self.obs_dim = int(np.prod(mdp_info.observation_space.shape))
         self.act_dim = int(np.prod(mdp_info.action_space.shape))
-        self.gamma = float(mdp_info.gamma)
+        # the learner's discount: the task's MDPInfo.gamma unless the config sets one (an algorithm
+        # hyper-parameter in IL: the environment's reward, which gamma belongs to, is not trained on)
+        self.gamma = float(mdp_info.gamma if gamma is None else gamma)
+        if not 0.0 < self.gamma < 1.0:
+            raise ValueError(f"gamma must lie in (0, 1), got {self.gamma}")
         self.sac = SACCore(self.policy_module, self.obs_dim, self.act_dim, critic_hidden, self.gamma, tau,
                            actor_lr, critic_lr, alpha_lr, init_alpha, learn_alpha, target_entropy,
                            critic_grad_clip, self.device, n_critics)
@@ -178,6 +188,14 @@ class OffPolicyILAgent(ILAgent):
         self.last_info: dict[str, torch.Tensor] = {}
         self._register_checkpoint("sac", self.sac)
         self._register_checkpoint_attr("n_transitions", "n_updates")
+        self.actor_ema = None if actor_ema is None else float(actor_ema)
+        self.policy_ema: nn.Module | None = None
+        if self.actor_ema is not None:
+            if not 0.0 < self.actor_ema <= 1.0:
+                raise ValueError(f"actor_ema must lie in (0, 1], got {actor_ema}")
+            self.policy_ema = copy.deepcopy(self.policy_module).requires_grad_(False)
+            self._ema_pairs = (list(self.policy_ema.parameters()), list(self.policy_module.parameters()))
+            self._register_checkpoint("policy_ema", self.policy_ema)
 
     # ------------------------------------------------------------------ data
     def set_expert(self, expert) -> None:
@@ -212,10 +230,29 @@ class OffPolicyILAgent(ILAgent):
         if self.n_updates % self.actor_delay == 0:
             states = torch.cat([expert["obs"], policy["obs"]]) if self.actor_on_expert_states else policy["obs"]
             info.update(self.sac.actor_step(states))
+            if self.policy_ema is not None:
+                with torch.no_grad():
+                    torch._foreach_lerp_(*self._ema_pairs, self.actor_ema)
         self.sac.update_target()
         self.n_updates += 1
         self.last_info = info
         return info
+
+    @contextlib.contextmanager
+    def averaged_actor(self):
+        """Inside the block the agent acts with the moving average of its actor (needs `actor_ema`).
+
+        The average is copied into the live parameters (same storages, so the numpy fast path of `_act`
+        stays valid) and the live values are copied back on exit, also after an exception.
+        """
+        if self.policy_ema is None:
+            raise ValueError(f"{self.pretty_name()} keeps no actor average: construct it with actor_ema=<rate>")
+        live = {k: v.detach().clone() for k, v in self.policy_module.state_dict().items()}
+        self.policy_module.load_state_dict(self.policy_ema.state_dict())
+        try:
+            yield self
+        finally:
+            self.policy_module.load_state_dict(live)
 
     def critic_loss(self, expert: dict, policy: dict) -> tuple[torch.Tensor, dict]:
         """The method-specific critic objective on one expert and one agent batch."""
