@@ -483,3 +483,10 @@ def test_actor_average_survives_a_checkpoint(tmp_path):
     loaded = SQIL.load(tmp_path / "a.pt")
     for a, b in zip(_params(agent.policy_ema), _params(loaded.policy_ema)):
         assert torch.equal(a, b)
+    # the state of an agent without the average (a fork that adds actor_ema): the average starts at its actor
+    plain = _agent(SQIL, seed=1)
+    plain.fit(_dataset(n=40))
+    forked = _agent(SQIL, seed=2, actor_ema=0.2)
+    forked.load_state_dict(plain.state_dict())
+    for a, b, c in zip(_params(plain.policy_module), _params(forked.policy_module), _params(forked.policy_ema)):
+        assert torch.equal(a, b) and torch.equal(a, c)

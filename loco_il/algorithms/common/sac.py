@@ -238,6 +238,12 @@ class OffPolicyILAgent(ILAgent):
         self.last_info = info
         return info
 
+    def load_state_dict(self, state: dict) -> None:
+        if self.policy_ema is not None and "policy_ema" not in state:
+            # the state of a run without the average (e.g. fork_from with actor_ema added): it starts at the actor
+            state = dict(state, policy_ema=state["policy"])
+        super().load_state_dict(state)
+
     @contextlib.contextmanager
     def averaged_actor(self):
         """Inside the block the agent acts with the moving average of its actor (needs `actor_ema`).
