@@ -140,8 +140,9 @@ def train(name: str, expert, seed: int = 0, n_steps: int | None = None,
 
 @pytest.mark.parametrize("name", list(CASES))
 def test_reaches_expert_return(name, expert_data):
-    """The issue's learning test: each learner reaches 0.8 of the expert's return within its budget (evaluated
-    every EVAL_EVERY env steps; LS-IQ's learners reach the expert and can fall off it again, see CASES)."""
+    """The issue's learning test: each learner is at >= 0.8 of the expert's return at the end of its budget. The
+    curve (an evaluation every EVAL_EVERY env steps) is printed: LS-IQ's learners reach the expert and can fall
+    off it again (see CASES and benchmarks/RESULTS.md)."""
     if name == "lsiqfo":
         expert_data = SimpleNamespace(**{**vars(expert_data), "actions": None})  # state-only demonstrations
     start, cpu_start = time.perf_counter(), time.process_time()
@@ -149,5 +150,5 @@ def test_reaches_expert_return(name, expert_data):
     elapsed, cpu = time.perf_counter() - start, time.process_time() - cpu_start
     points = " ".join(f"{steps}:{ret:.0f}" for steps, ret in curve)
     print(f"{name}: returns {points} (expert {HORIZON}), {elapsed:.1f} s wall, {cpu:.1f} s CPU")
-    best = max(ret for _, ret in curve)
-    assert best >= 0.8 * HORIZON, f"{name} reached only {best:.0f} of the expert's {HORIZON} ({points})"
+    final = curve[-1][1]
+    assert final >= 0.8 * HORIZON, f"{name} ends at {final:.0f} of the expert's {HORIZON} ({points})"
