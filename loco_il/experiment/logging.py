@@ -92,6 +92,9 @@ class RunLogger:
         self.run_dir.mkdir(parents=True, exist_ok=True)
         self.csv_path = self.run_dir / "log.csv"
         self.jsonl_path = self.run_dir / "log.jsonl"
+        if self.csv_path.is_file() and self.csv_path.stat().st_size and self._csv_header() != list(CSV_COLUMNS):
+            # a run resumed from a version with other columns: rewrite the file from log.jsonl (all keys)
+            self._write_csv(read_jsonl(self.jsonl_path))
         self._wandb = None
         self.wandb_id = wandb_id
         self._bar = None
@@ -132,19 +135,12 @@ class RunLogger:
             fh.write(json.dumps(row) + "\n")
             fh.flush()
         new = not self.csv_path.is_file() or self.csv_path.stat().st_size == 0
-        if not new and self._csv_header() != list(CSV_COLUMNS):
-            # a run resumed from a version with other columns: rewrite the file from log.jsonl (all keys)
-            self._write_csv(read_jsonl(self.jsonl_path))
-            return self._log_elsewhere(row)
         with open(self.csv_path, "a", newline="") as fh:
             writer = csv.DictWriter(fh, fieldnames=CSV_COLUMNS, extrasaction="ignore")
             if new:
                 writer.writeheader()
             writer.writerow({k: ("" if row.get(k) is None else row.get(k)) for k in CSV_COLUMNS})
             fh.flush()
-        return self._log_elsewhere(row)
-
-    def _log_elsewhere(self, row: dict) -> dict:
         if self._wandb is not None:
             data = {k: v for k, v in row.items() if isinstance(v, (int, float)) and v is not None and k != "step"}
             self._wandb.log(data, step=int(row.get("step", 0)))
