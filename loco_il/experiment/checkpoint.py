@@ -35,7 +35,7 @@ CHECKPOINT_NAME = "checkpoint.pt"
 
 #: keys of the run config that may change between a run and its resumption
 RESUMABLE_KEYS = frozenset({"resume", "stop_after_steps", "logger", "eval", "n_steps", "checkpoint_every",
-                            "checkpoint_replay", "fork_from",
+                            "checkpoint_replay", "fork_from", "keep_checkpoints_above",
                             "device", "torch_threads", "results_dir", "per_algo"})
 #: config keys added after runs may have been checkpointed, with the value that behaves as those runs did:
 #: a checkpoint without the key resumes when the new config holds that value

@@ -43,6 +43,40 @@ STOPPED_EXIT_CODE = 3
 SIGNAL_EXIT_CODE = 130
 
 
+#: sub-directory of a run dir with the checkpoints kept by `keep_checkpoints_above` (kept/step<N>.pt)
+KEPT_DIR = "kept"
+
+
+def keep_threshold(value: Any) -> float | None:
+    """`keep_checkpoints_above` as a number (None: keep none); a clear error for anything else."""
+    if value is None:
+        return None
+    try:
+        threshold = float(value)
+    except (TypeError, ValueError):
+        raise ExperimentConfigError(f"keep_checkpoints_above={value!r}: expected a normalized score "
+                                    f"(e.g. 0.9) or null") from None
+    if math.isnan(threshold):
+        raise ExperimentConfigError("keep_checkpoints_above=nan: expected a normalized score (e.g. 0.9) or null")
+    return threshold
+
+
+def keep_copy(run_dir: Path, step: int) -> Path:
+    """Copy the run's checkpoint, just written at `step`, to kept/step<step>.pt (atomically: a kill mid-copy
+    leaves no partial file under the final name)."""
+    from loco_il.utils.atomic import atomic_copy
+    dest = run_dir / KEPT_DIR / f"step{step}.pt"
+    dest.parent.mkdir(exist_ok=True)
+    atomic_copy(run_dir / CHECKPOINT_NAME, dest)
+    return dest
+
+
+def source_run_dir(checkpoint: Path) -> Path:
+    """The run dir a checkpoint file belongs to: its folder, or the run dir above kept/."""
+    parent = checkpoint.parent
+    return parent.parent if parent.name == KEPT_DIR else parent
+
+
 class StopRequested(Exception):
     """`stop_after_steps` was reached: the run stops like a killed one (no checkpoint of the last chunk)."""
 
@@ -244,9 +278,10 @@ class Runner:
             if was != new:
                 raise CheckpointError(f"fork_from={src}: that run has {key}={was!r}, this one {new!r}; a fork "
                                       f"continues the same algorithm on the same task")
+        src_dir = source_run_dir(src_ckpt)
         for name in ("log.csv", "log.jsonl"):   # the curve up to the fork point (truncated to its step later)
-            if (src_ckpt.parent / name).is_file():
-                shutil.copyfile(src_ckpt.parent / name, self.run_dir / name)
+            if (src_dir / name).is_file():
+                shutil.copyfile(src_dir / name, self.run_dir / name)
         diffs = [d for d in config_differences(old, self.cfg) if not d.startswith("fork_from")]
         print(f"[loco_il] forking {src_ckpt} at step {ckpt['counters']['step']}; changed settings:\n  "
               + ("\n  ".join(diffs) or "none"), flush=True)
@@ -264,6 +299,7 @@ class Runner:
             cls = get_algorithm(self.algo_cfg["name"])
             cls.check_dataset_type(dataset_type_of(self.task_id))
             init_state = check_init_state(str(c.get("init_state") or "default"))
+            keep_above = keep_threshold(c.get("keep_checkpoints_above"))
         except (KeyError, ValueError) as exc:
             raise ExperimentConfigError(str(exc.args[0]) if exc.args else str(exc)) from exc
         self.offline = factory.is_offline(cls, self.algo_cfg)
@@ -338,6 +374,7 @@ class Runner:
                 core = None if self.offline else self._make_core(window, counters, stop)
                 last_t, last_step = clock(), step
                 while step < budget:
+                    keep = False
                     nxt_eval = (step // eval_every + 1) * eval_every
                     nxt_ckpt = (step // ckpt_every + 1) * ckpt_every
                     n = min(nxt_eval, nxt_ckpt, budget) - step
@@ -353,6 +390,7 @@ class Runner:
                         last_t, last_step = clock(), step   # steps/s without the evaluation's time
                         counters["n_evals"] += 1
                         logger.log(row)
+                        keep = keep_above is not None and (row.get("normalized_score") or -math.inf) >= keep_above
                         logger.write(f"[loco_il] step {step}: eval return {row['eval_return_mean']:.2f} ± "
                                      f"{row['eval_return_std']:.2f}" + (f", normalized {row['normalized_score']:.3f}"
                                                                         if row.get("normalized_score") is not None
@@ -364,8 +402,12 @@ class Runner:
                                           "distinct_episodes": row["eval_distinct_episodes"]}) else ""))
                     # a stop signal ends the chunk at the next fit and checkpoints there: within seconds
                     # instead of up to a whole interval later (a scheduler's SIGTERM grace is often short)
-                    if step % ckpt_every == 0 or step == budget or stop.signal is not None:
+                    if step % ckpt_every == 0 or step == budget or stop.signal is not None or keep:
                         checkpoint()
+                    if keep:
+                        path = keep_copy(self.run_dir, step)
+                        logger.write(f"[loco_il] normalized score {row['normalized_score']:.3f} >= {keep_above}: "
+                                     f"checkpoint kept as {path} (fork_from={path} branches from it)")
                     if stop.signal is not None and step < budget:
                         raise StoppedBySignal(f"stopped by {stop.signal} at step {step}/{budget}, checkpoint "
                                               f"saved (re-run the same command to resume)")

@@ -45,6 +45,13 @@ def atomic_write(path: str | os.PathLike, writer: Callable[[IO], None]) -> None:
         writer(handle)
 
 
+def atomic_copy(source: str | os.PathLike, path: str | os.PathLike) -> None:
+    """Copy `source` to `path`; `path` holds either its old content or the whole copy, never a part."""
+    import shutil
+    with open(source, "rb") as src:
+        atomic_write(path, lambda handle: shutil.copyfileobj(src, handle))
+
+
 def atomic_torch_save(obj: object, path: str | os.PathLike) -> None:
     """`torch.save` that never leaves a truncated file behind."""
     atomic_write(path, lambda handle: torch.save(obj, handle))

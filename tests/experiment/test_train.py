@@ -208,6 +208,41 @@ def test_fork_branches_a_run_at_its_checkpoint(env_vars, tmp_path):
         assert all(1 <= int(m.group(i)) <= 1000 for i in (2, 5)), modes
 
 
+def test_checkpoints_kept_above_a_score_and_forked_from(env_vars, tmp_path):
+    """keep_checkpoints_above: every evaluation scoring at least the threshold also keeps that step's checkpoint
+    as kept/step<N>.pt, also between checkpoint_every points; fork_from takes such a file, with the source
+    run's curve up to that step."""
+    results = tmp_path / "r"
+    train(env_vars, results, *TINY_LSIQ, "n_steps=600", "eval.every=200", "checkpoint_every=600",
+          "keep_checkpoints_above=-1e9")
+    d = run_dir(results, "lsiq")
+    kept = sorted((d / "kept").iterdir(), key=lambda p: int(p.stem[4:]))
+    assert [p.name for p in kept] == ["step200.pt", "step400.pt", "step600.pt"]
+    steps = [torch.load(p, map_location="cpu", weights_only=False)["counters"]["step"] for p in kept]
+    assert steps == [200, 400, 600]
+    scores = [float(r["normalized_score"]) for r in csv_rows(d / "log.csv")]
+
+    # the same run with the step-400 score as threshold keeps exactly the evaluations at or above it
+    proc = train(env_vars, results, *TINY_LSIQ, "n_steps=600", "eval.every=200", "checkpoint_every=600",
+                 "name=lsiq_sel", f"keep_checkpoints_above={scores[1]!r}")
+    d_sel = run_dir(results, "lsiq_sel")
+    assert [float(r["normalized_score"]) for r in csv_rows(d_sel / "log.csv")] == scores   # same seed, same run
+    expected = sorted(f"step{200 * (i + 1)}.pt" for i, s in enumerate(scores) if s >= scores[1])
+    assert sorted(p.name for p in (d_sel / "kept").iterdir()) == expected
+    assert proc.stdout.count("checkpoint kept as") == len(expected)
+
+    fork = train(env_vars, results, *TINY_LSIQ, "n_steps=400", "eval.every=200", "name=lsiq_fork200",
+                 f"fork_from={kept[0]}", "algo.params.actor_lr=1e-4")
+    assert "forking" in fork.stdout + fork.stderr
+    rows = csv_rows(run_dir(results, "lsiq_fork200") / "log.csv")
+    assert [int(r["step"]) for r in rows] == [200, 400]
+    assert float(rows[0]["normalized_score"]) == scores[0]   # the source's row at the fork point
+
+    bad = train(env_vars, results, *TINY_LSIQ, "n_steps=200", "name=lsiq_bad", "keep_checkpoints_above=high",
+                check=False)
+    assert bad.returncode == 2 and "keep_checkpoints_above='high'" in bad.stderr, bad.stderr[-2000:]
+
+
 def test_discount_and_actor_average_from_the_command_line(env_vars, tmp_path):
     """algo.params.gamma replaces the task's discount; algo.params.actor_ema adds an evaluation of the actor's
     moving average at every evaluation point and in eval.json."""
