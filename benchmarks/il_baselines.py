@@ -28,6 +28,9 @@ a new episode, so an episode is cut at each evaluation point.
 
     python benchmarks/il_baselines.py --algos gail vail gaifo --seeds 0 1 --steps 50000 --eval-every 10240
     python benchmarks/il_baselines.py --task UnitreeA1.simple --algos gaifo --datasets real --seeds 0 --steps 300000
+    python benchmarks/il_baselines.py --summarize a.csv b.csv --stability 0.9   # do runs stay at the expert?
+
+`--set policy.hidden=[64,64]` sets the actor network's sizes (other `policy.*` keys alike).
 """
 from __future__ import annotations
 
@@ -164,7 +167,9 @@ def run_one(algo: str, dataset: str, seed: int, args, writer, fh, norm, norm_des
         target_algos, _, key = key.rpartition(":")
         if target_algos and algo not in target_algos.split(","):
             continue
-        if key in _accepted(get_algorithm(algo)):
+        if key.startswith("policy."):        # the actor network, e.g. policy.hidden=[64,64]
+            cfg.setdefault("policy", {})[key[len("policy."):]] = parse_value(value)
+        elif key in _accepted(get_algorithm(algo)):
             cfg["params"][key] = parse_value(value)
     if algo == "gail" and dataset in STATE_ONLY_DATASETS:
         cfg["params"]["use_actions"] = None  # -> D(s)
@@ -258,6 +263,41 @@ def summarize(paths) -> None:
               f"{ret:.0f} | {scores} | {last3} | {wall:.0f} |")
 
 
+def read_curves(path) -> dict[tuple, list[tuple[int, float]]]:
+    """{(algo, dataset, seed, run_id): [(env steps or updates, normalized score), ...]} of one CSV."""
+    curves: dict[tuple, list[tuple[int, float]]] = {}
+    with open(path) as fh:
+        for row in csv.DictReader(fh):
+            key = (row["algo"], row["dataset"], int(row["seed"]), row["run_id"].split("#")[0])
+            step = int(row["updates"] if row["env_steps"] == "0" else row["env_steps"])
+            curves.setdefault(key, []).append((step, float(row["normalized_score"])))
+    return curves
+
+
+def summarize_stability(paths, threshold: float) -> None:
+    """Markdown table: does a run stay at the expert once it got there? Per CSV (its file name is the variant)
+    and (algo, dataset), for each seed: the first evaluation scoring >= threshold and, of the evaluations after
+    it, how many also do and their minimum (`loco_il.evaluation.progress.stability`); the untrained policy's
+    row (step 0) is left out."""
+    from loco_il.evaluation.progress import stability
+    print(f"| variant (CSV) | algo | dataset | seeds | first >= {threshold:g} at (per seed) | "
+          f"later evaluations >= {threshold:g} | min after | falls back (seeds) |")
+    print("|---|---|---|---|---|---|---|---|")
+    for path in paths:
+        groups: dict[tuple, list[dict]] = {}
+        for (algo, dataset, seed, _), curve in sorted(read_curves(path).items(), key=lambda kv: kv[0][2]):
+            groups.setdefault((algo, dataset), []).append(
+                dict(stability([(step, x) for step, x in curve if step > 0], threshold), seed=seed))
+        for (algo, dataset), runs in groups.items():
+            reached = ", ".join("never" if r["reached"] is None else f"{r['reached'] / 1000:g}k" for r in runs)
+            kept = sum(round(r["share_after"] * r["n_after"]) for r in runs if r["n_after"])
+            later = sum(r["n_after"] for r in runs)
+            mins = [r["min_after"] for r in runs if r["min_after"] is not None]
+            fell = sum(1 for r in runs if r["min_after"] is not None and r["min_after"] < threshold)
+            print(f"| {Path(path).stem} | {algo} | {dataset} | {len(runs)} | {reached} | {kept}/{later} | "
+                  f"{min(mins) if mins else float('nan'):.2f} | {fell}/{sum(r['reached'] is not None for r in runs)} |")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--task", default=DEFAULT_TASK, help="<Env>.<task> (its perfect/real datasets are used)")
@@ -276,9 +316,15 @@ def main() -> None:
     parser.add_argument("--threads", type=int, default=1)
     parser.add_argument("--summarize", nargs="+", metavar="CSV",
                         help="only print a Markdown table of the last evaluation of every run in these CSVs")
+    parser.add_argument("--stability", type=float, metavar="SCORE",
+                        help="with --summarize: instead of the last evaluations, whether runs stay at or above "
+                             "this normalized score once they reached it (one row per CSV and algorithm)")
     args = parser.parse_args()
     if args.summarize:
-        summarize(args.summarize)
+        if args.stability is not None:
+            summarize_stability(args.summarize, args.stability)
+        else:
+            summarize(args.summarize)
         return
     torch.set_num_threads(args.threads)
     unknown = set(args.algos) - set(ALL_ALGOS)

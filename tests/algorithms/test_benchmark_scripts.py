@@ -64,3 +64,21 @@ def test_il_speed_runs_and_compares_each_agent_with_the_bare_update_of_its_criti
             assert ratio == 1.0
     on_rows = dict(re.findall(r"^(\S+(?: env)?)\s+\d+\s+([\d.]+)$", onpolicy, re.M))
     assert float(on_rows["bare env"]) == 1.0 and 0 < float(on_rows["gail"]), out
+
+
+def test_il_baselines_stability_summary_counts_the_evaluations_after_the_first_expert_level_one(tmp_path, capsys):
+    """--summarize --stability: per CSV and algorithm, when each seed first scored >= the threshold, how many later
+    evaluations also did, their minimum and how many seeds fell below it again (the step-0 row is left out)."""
+    module = load_script("il_baselines")
+    path = tmp_path / "variant_a.csv"
+    rows = {0: [0.95, 0.2, 0.95, 1.0, 0.5],      # step 0 scores 0.95 (left out); first at 2k, then 1.0, 0.5
+            1: [0.0, 0.1, 0.3, 0.4, 0.6]}        # never
+    with open(path, "w") as fh:
+        fh.write(",".join(module.FIELDS) + "\n")
+        for seed, scores in rows.items():
+            for i, score in enumerate(scores):
+                fh.write(f"lsiq,perfect,{seed},{1000 * i},{1000 * i},1.0,0,0,{score},ref,run{seed}"
+                         f"{'#final' if i == len(scores) - 1 else ''}\n")
+    module.summarize_stability([path], 0.9)
+    table = capsys.readouterr().out.splitlines()
+    assert table[2] == "| variant_a | lsiq | perfect | 2 | 2k, never | 1/2 | 0.50 | 1/1 |", table
