@@ -64,7 +64,14 @@ def load_cfg(algo: str) -> dict:
 
 
 def parse_value(text: str):
-    return yaml.safe_load(text)
+    """A --set value as YAML, with numbers such as 1e-3 as floats (YAML 1.1 reads them as strings)."""
+    value = yaml.safe_load(text)
+    if isinstance(value, str):
+        try:
+            return float(value)
+        except ValueError:
+            return value
+    return value
 
 
 def task_id(task: str, dataset: str) -> str:

@@ -82,3 +82,10 @@ def test_il_baselines_stability_summary_counts_the_evaluations_after_the_first_e
     module.summarize_stability([path], 0.9)
     table = capsys.readouterr().out.splitlines()
     assert table[2] == "| variant_a | lsiq | perfect | 2 | 2k, never | 1/2 | 0.50 | 1/1 |", table
+
+
+def test_il_baselines_reads_set_values_as_yaml_with_exponent_floats():
+    """`--set actor_lr=1e-3`: YAML 1.1 reads 1e-3 as a string, which reached torch's optimizer as one."""
+    parse = load_script("il_baselines").parse_value
+    assert [parse(x) for x in ("1e-3", "3.0e-4", "false", "[64,64]", "mixture", "500")] == \
+        [0.001, 0.0003, False, [64, 64], "mixture", 500]
