@@ -390,7 +390,8 @@ class Runner:
                         last_t, last_step = clock(), step   # steps/s without the evaluation's time
                         counters["n_evals"] += 1
                         logger.log(row)
-                        keep = keep_above is not None and (row.get("normalized_score") or -math.inf) >= keep_above
+                        score = row.get("normalized_score")   # None on tasks without baselines: nothing kept
+                        keep = keep_above is not None and score is not None and score >= keep_above
                         logger.write(f"[loco_il] step {step}: eval return {row['eval_return_mean']:.2f} ± "
                                      f"{row['eval_return_std']:.2f}" + (f", normalized {row['normalized_score']:.3f}"
                                                                         if row.get("normalized_score") is not None
