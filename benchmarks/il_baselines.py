@@ -297,7 +297,7 @@ def summarize_stability(paths, threshold: float) -> None:
                 dict(stability([(step, x) for step, x in curve if step > 0], threshold), seed=seed))
         for (algo, dataset), runs in groups.items():
             reached = ", ".join("never" if r["reached"] is None else f"{r['reached'] / 1000:g}k" for r in runs)
-            kept = sum(round(r["share_after"] * r["n_after"]) for r in runs if r["n_after"])
+            kept = sum(r["n_held"] for r in runs)
             later = sum(r["n_after"] for r in runs)
             mins = [r["min_after"] for r in runs if r["min_after"] is not None]
             fell = sum(1 for r in runs if r["min_after"] is not None and r["min_after"] < threshold)

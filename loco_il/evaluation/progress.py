@@ -90,13 +90,15 @@ def format_curve(row: dict[str, Any], key: str = "curve") -> str:
 
 def stability(curve: list[tuple[int, float | None]], threshold: float) -> dict[str, Any]:
     """Does a run stay at the expert once it reached it? `reached`: the first step scoring >= threshold (None if
-    never); over the evaluations after it (`n_after`): the share that also score >= threshold, their min and mean.
+    never); over the evaluations after it (`n_after`): how many also score >= threshold (`n_held`) and their
+    share, their min and mean.
     Evaluations without a score are left out."""
     scored = [(step, score) for step, score in curve if score is not None]
     first = next((i for i, (_, score) in enumerate(scored) if score >= threshold), None)
     after = [] if first is None else [score for _, score in scored[first + 1:]]
-    return {"reached": None if first is None else scored[first][0], "n_after": len(after),
-            "share_after": sum(x >= threshold for x in after) / len(after) if after else None,
+    held = sum(x >= threshold for x in after)
+    return {"reached": None if first is None else scored[first][0], "n_after": len(after), "n_held": held,
+            "share_after": held / len(after) if after else None,
             "min_after": min(after) if after else None,
             "mean_after": sum(after) / len(after) if after else None}
 
