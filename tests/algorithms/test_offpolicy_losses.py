@@ -490,3 +490,31 @@ def test_actor_average_survives_a_checkpoint(tmp_path):
     forked.load_state_dict(plain.state_dict())
     for a, b, c in zip(_params(plain.policy_module), _params(forked.policy_module), _params(forked.policy_ema)):
         assert torch.equal(a, b) and torch.equal(a, c)
+
+
+def test_loaded_state_keeps_the_configured_learning_rates():
+    """A fork with changed learning rates trains with the new ones: loading a state restores the optimizers'
+    moments, not the source run's learning rates (torch's Optimizer.load_state_dict alone would)."""
+    source = _agent(LSIQ, critic_lr=3e-4, actor_lr=3e-5)
+    source.fit(_dataset(n=40))
+    fork = _agent(LSIQ, seed=1, critic_lr=1e-5, actor_lr=1e-6)
+    fork.load_state_dict(source.state_dict())
+    assert [g["lr"] for g in fork.sac.critic_opt.param_groups] == [1e-5]
+    assert [g["lr"] for g in fork.sac.actor_opt.param_groups] == [1e-6]
+    for name in ("critic_opt", "actor_opt"):        # the moments are the source's
+        mine, theirs = getattr(fork.sac, name).state_dict()["state"], getattr(source.sac, name).state_dict()["state"]
+        assert mine.keys() == theirs.keys() and len(mine) > 0
+        for k in mine:
+            assert torch.equal(mine[k]["exp_avg_sq"], theirs[k]["exp_avg_sq"])
+    # the step the fork takes is the new rate's: at one hundredth of the critic rate the critic moves far less
+    same = _agent(LSIQ, seed=1, critic_lr=3e-4, actor_lr=3e-5)
+    same.load_state_dict(source.state_dict())
+    before = [p.clone() for p in source.sac.critic.parameters()]
+    batch = _dataset(n=1, seed=9)
+    moved = []
+    for agent in (same, fork):
+        agent.replay.load_state_dict(source.replay.state_dict())   # not part of the agent's state
+        agent.fit(batch)
+        assert agent.n_updates == source.n_updates + 1
+        moved.append(sum((p - b).abs().sum().item() for p, b in zip(agent.sac.critic.parameters(), before)))
+    assert moved[1] < 0.1 * moved[0]

@@ -350,3 +350,12 @@ def test_onpolicy_agents_fit_on_cuda(tmp_path, algo):
     assert agent.draw_action(np.zeros(4)).shape == (1,)
     agent.save(tmp_path / "a.pt")
     assert algo.load(tmp_path / "a.pt", device="cpu").n_fits == 1
+
+
+def test_onpolicy_loaded_state_keeps_the_configured_learning_rates():
+    """As for the SAC-based agents: a state loaded into an agent built with other learning rates keeps them."""
+    source = GAIL(mdp_info(), small_policy(), seed=0, **dict(SMALL, disc_lr=3e-4, vf_lr=3e-4))
+    fork = GAIL(mdp_info(), small_policy(), seed=1, **dict(SMALL, disc_lr=1e-6, vf_lr=2e-6))
+    fork.load_state_dict(source.state_dict())
+    assert [g["lr"] for g in fork.disc_optimizer.param_groups] == [1e-6]
+    assert [g["lr"] for g in fork.trpo.vf_optimizer.param_groups] == [2e-6]

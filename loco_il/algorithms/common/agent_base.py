@@ -54,6 +54,19 @@ def get_algorithm(name: str) -> type["ILAgent"]:
         raise KeyError(f"unknown algorithm {name!r}; known: {sorted(ALGORITHMS)}") from None
 
 
+
+def load_optimizer_state(optimizer: torch.optim.Optimizer, state: dict) -> None:
+    """Load an optimizer's moments and step counts from `state`, keeping its configured hyper-parameters.
+
+    torch's `Optimizer.load_state_dict` also restores the saved learning rate (every param-group setting),
+    so a `fork_from` with a changed `actor_lr` or `critic_lr` would silently train with the source run's
+    rates. The configuration is the source of truth; for a plain resume the two agree.
+    """
+    configured = [{k: v for k, v in group.items() if k != "params"} for group in optimizer.param_groups]
+    optimizer.load_state_dict(state)
+    for group, settings in zip(optimizer.param_groups, configured):
+        group.update(settings)
+
 class _ModulePolicy:
     """The minimal mushroom-rl policy interface (`draw_action`, `reset`) around an agent's actor."""
 
@@ -263,7 +276,10 @@ class ILAgent(Agent):
         if missing:
             raise KeyError(f"checkpoint lacks {sorted(missing)}")
         for key, obj in self._ckpt_objects.items():
-            obj.load_state_dict(state[key])
+            if isinstance(obj, torch.optim.Optimizer):
+                load_optimizer_state(obj, state[key])
+            else:
+                obj.load_state_dict(state[key])
         for n, value in state["attrs"].items():
             current = getattr(self, n, None)
             if isinstance(current, torch.Tensor) and isinstance(value, torch.Tensor):

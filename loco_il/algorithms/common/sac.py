@@ -21,7 +21,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from .agent_base import ILAgent
+from .agent_base import ILAgent, load_optimizer_state
 from .networks import EnsembleQ, GaussianPolicy
 from .replay import TransitionBuffer
 
@@ -131,9 +131,8 @@ class SACCore:
         self.critic_target.load_state_dict(state["critic_target"])
         with torch.no_grad():
             self.log_alpha.copy_(state["log_alpha"])
-        self.actor_opt.load_state_dict(state["actor_opt"])
-        self.critic_opt.load_state_dict(state["critic_opt"])
-        self.alpha_opt.load_state_dict(state["alpha_opt"])
+        for name in ("actor_opt", "critic_opt", "alpha_opt"):
+            load_optimizer_state(getattr(self, name), state[name])
 
 
 # rows of [expert; policy] on which `critic_values` evaluates Q(s, a) or V(s), given the number of expert rows
