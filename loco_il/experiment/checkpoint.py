@@ -40,7 +40,8 @@ RESUMABLE_KEYS = frozenset({"resume", "stop_after_steps", "logger", "eval", "n_s
 #: config keys added after runs may have been checkpointed, with the value that behaves as those runs did:
 #: a checkpoint without the key resumes when the new config holds that value
 ADDED_KEYS: dict[str, Any] = {"init_state": "default", "algo.policy.log_std_bounds": [-20.0, 2.0],
-                              "algo.params.n_critics": 2, "algo.params.gamma": None, "algo.params.actor_ema": None}
+                              "algo.params.n_critics": 2, "algo.params.gamma": None, "algo.params.actor_ema": None,
+                              "algo.params.freeze_replay": False}
 
 
 class CheckpointError(RuntimeError):

@@ -518,3 +518,18 @@ def test_loaded_state_keeps_the_configured_learning_rates():
         assert agent.n_updates == source.n_updates + 1
         moved.append(sum((p - b).abs().sum().item() for p, b in zip(agent.sac.critic.parameters(), before)))
     assert moved[1] < 0.1 * moved[0]
+
+
+def test_frozen_replay_keeps_updating_on_the_stored_transitions():
+    agent = _agent(SQIL)
+    agent.fit(_dataset(n=40))
+    stored = agent.replay.state_dict()
+    updates = agent.n_updates
+    agent.freeze_replay = True                  # as a fork with freeze_replay=true
+    agent.fit(_dataset(n=10, seed=3))
+    assert agent.n_updates == updates + 10 and agent.n_transitions == 50
+    for key, value in agent.replay.state_dict().items():   # nothing new stored
+        assert np.array_equal(np.asarray(value), np.asarray(stored[key])), key
+    empty = _agent(SQIL, freeze_replay=True)
+    with pytest.raises(RuntimeError, match="no update would ever run"):
+        empty.fit(_dataset(n=10))

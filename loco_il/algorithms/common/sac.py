@@ -151,6 +151,10 @@ class OffPolicyILAgent(ILAgent):
     `actor_ema` (e.g. 1e-4): also keep an exponential moving average of the actor's parameters,
     updated after every actor step with that rate; it never acts during training (training is the same
     with or without it), `averaged_actor()` swaps it in for an evaluation.
+
+    `freeze_replay=True` (an ablation, e.g. for a fork): new transitions are no longer stored, so the updates go on
+    over the replay memory as it is; whether a change of behaviour comes from the data the agent collects or
+    from the updates themselves.
     """
 
     needs_expert_actions = True
@@ -163,7 +167,7 @@ class OffPolicyILAgent(ILAgent):
                  random_initial_steps: int = 0, updates_per_step: int = 1, actor_delay: int = 1,
                  critic_grad_clip: float | None = None, actor_on_expert_states: bool = True,
                  n_critics: int = 2, gamma: float | None = None, actor_ema: float | None = None,
-                 device: str = "cpu", seed: int | None = None):
+                 freeze_replay: bool = False, device: str = "cpu", seed: int | None = None):
         super().__init__(mdp_info, policy_module, device=device, seed=seed)
         self.obs_dim = int(np.prod(mdp_info.observation_space.shape))
         self.act_dim = int(np.prod(mdp_info.action_space.shape))
@@ -181,6 +185,7 @@ class OffPolicyILAgent(ILAgent):
         self.updates_per_step, self.actor_delay = int(updates_per_step), int(actor_delay)
         self.actor_on_expert_states = actor_on_expert_states
         self.replay = TransitionBuffer(replay_capacity, self.obs_dim, self.act_dim, self.device)
+        self.freeze_replay = bool(freeze_replay)
         self.expert_buffer: TransitionBuffer | None = None
         self.n_transitions = 0
         self.n_updates = 0
@@ -208,7 +213,12 @@ class OffPolicyILAgent(ILAgent):
         if self.expert_buffer is None:
             raise RuntimeError("call set_expert(...) before fit")
         d = self.parse_dataset(dataset)
-        self.replay.add(d["obs"], d["next_obs"], d["absorbing"].astype(np.float32), d["actions"])
+        if not self.freeze_replay:
+            self.replay.add(d["obs"], d["next_obs"], d["absorbing"].astype(np.float32), d["actions"])
+        elif len(self.replay) < self.initial_replay_size:
+            raise RuntimeError(f"freeze_replay with {len(self.replay)} stored transitions (initial_replay_size "
+                               f"{self.initial_replay_size}): no update would ever run; it is meant for a fork "
+                               "of a run whose checkpoint holds its replay memory")
         self.n_transitions += len(d["obs"])
         if len(self.replay) >= self.initial_replay_size:
             for _ in range(len(d["obs"]) * self.updates_per_step):
