@@ -54,7 +54,6 @@ def get_algorithm(name: str) -> type["ILAgent"]:
         raise KeyError(f"unknown algorithm {name!r}; known: {sorted(ALGORITHMS)}") from None
 
 
-
 def load_optimizer_state(optimizer: torch.optim.Optimizer, state: dict) -> None:
     """Load an optimizer's moments and step counts from `state`, keeping its configured hyper-parameters.
 
@@ -66,6 +65,7 @@ def load_optimizer_state(optimizer: torch.optim.Optimizer, state: dict) -> None:
     optimizer.load_state_dict(state)
     for group, settings in zip(optimizer.param_groups, configured):
         group.update(settings)
+
 
 class _ModulePolicy:
     """The minimal mushroom-rl policy interface (`draw_action`, `reset`) around an agent's actor."""
