@@ -506,7 +506,7 @@ def test_loaded_state_keeps_the_configured_learning_rates():
         assert mine.keys() == theirs.keys() and len(mine) > 0
         for k in mine:
             assert torch.equal(mine[k]["exp_avg_sq"], theirs[k]["exp_avg_sq"])
-    # the step the fork takes is the new rate's: at one hundredth of the critic rate the critic moves far less
+    # the step the fork takes is the new rate's: at a thirtieth of the critic rate the critic moves far less
     same = _agent(LSIQ, seed=1, critic_lr=3e-4, actor_lr=3e-5)
     same.load_state_dict(source.state_dict())
     before = [p.clone() for p in source.sac.critic.parameters()]
