@@ -41,7 +41,9 @@ RESUMABLE_KEYS = frozenset({"resume", "stop_after_steps", "logger", "eval", "n_s
 #: a checkpoint without the key resumes when the new config holds that value
 ADDED_KEYS: dict[str, Any] = {"init_state": "default", "algo.policy.log_std_bounds": [-20.0, 2.0],
                               "algo.params.n_critics": 2, "algo.params.gamma": None, "algo.params.actor_ema": None,
-                              "algo.params.freeze_replay": False}
+                              "algo.params.freeze_replay": False, "algo.params.conservative_weight": 0.0,
+                              "algo.params.conservative_actions": 10, "algo.params.conservative_hinge": False,
+                              "algo.params.actor_bc_alpha": None}
 
 
 class CheckpointError(RuntimeError):

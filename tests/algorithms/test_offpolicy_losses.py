@@ -13,7 +13,8 @@ from torch import nn
 from loco_il.algorithms.common.agent_base import ALGORITHMS, get_algorithm
 from loco_il.algorithms.common.networks import GaussianPolicy
 from loco_il.algorithms.common.replay import TransitionBuffer
-from loco_il.algorithms.common.sac import SACCore, actor_loss, polyak_update, temperature_loss
+from loco_il.algorithms.common.sac import (SACCore, actor_loss, bc_regularized_actor_loss, conservative_penalty,
+                                          polyak_update, temperature_loss)
 from loco_il.algorithms.iq_learn import IQLearn, iq_critic_loss
 from loco_il.algorithms.lsiq import (LSIQ, LSIQfO, lsiq_bounds, lsiq_critic_loss, lsiq_fixed_expert_loss,
                                      lsiq_targets)
@@ -167,6 +168,40 @@ def test_polyak_update():
     polyak_update(tgt, src, tau=0.1)
     for b, s, t in zip(before, src.parameters(), tgt.parameters()):
         assert torch.allclose(t, 0.9 * b + 0.1 * s)
+
+
+def test_conservative_penalty_hand_computed():
+    # one head, K = 2 random actions, N = 2 states
+    # state 0: random Q 0, 0 -> log mean exp = 0, stored Q 1 -> -1
+    # state 1: random Q log 3, 0 -> log((3 + 1) / 2) = log 2, stored Q 0 -> log 2
+    q_random = torch.tensor([[[0.0, float(np.log(3.0))], [0.0, 0.0]]])
+    q_data = T(1.0, 0.0).unsqueeze(0).requires_grad_()
+    penalty = conservative_penalty(q_random, q_data)
+    assert penalty.item() == pytest.approx((-1.0 + np.log(2.0)) / 2, abs=1e-6)
+    penalty.backward()
+    assert torch.allclose(q_data.grad, T(-0.5, -0.5).unsqueeze(0))   # descending it raises the stored action's Q
+    # two identical heads: summed; the random actions' weights are their softmax (state 1: 3/4 and 1/4)
+    q_random2 = torch.cat([q_random, q_random]).requires_grad_()
+    penalty2 = conservative_penalty(q_random2, torch.cat([q_data, q_data]).detach())
+    assert penalty2.item() == pytest.approx(2 * penalty.item(), abs=1e-6)
+    penalty2.backward()
+    assert torch.allclose(q_random2.grad[0, :, 1], T(0.375, 0.125))
+    # hinged: state 0's negative term counts 0 and passes no gradient
+    q_data.grad = None
+    hinged = conservative_penalty(q_random, q_data, hinge=True)
+    assert hinged.item() == pytest.approx(np.log(2.0) / 2, abs=1e-6)
+    hinged.backward()
+    assert torch.allclose(q_data.grad, T(0.0, -0.5).unsqueeze(0))
+
+
+def test_bc_regularized_actor_loss_hand_computed():
+    # lambda = 2.5 / mean(|-4|, |6|) = 0.5; BC: mean over 2 states of the summed squared error: (0.25 + 1) / 2
+    sac_loss, q = torch.tensor(3.0), T(-4.0, 6.0)
+    mean_action, expert_action = T(0.5, 0.0, 0.0, 1.0).view(2, 2), torch.zeros(2, 2)
+    loss = bc_regularized_actor_loss(sac_loss, q, mean_action.requires_grad_(), expert_action, bc_alpha=2.5)
+    assert loss.item() == pytest.approx(0.5 * 3.0 + 0.625)
+    loss.backward()
+    assert torch.allclose(mean_action.grad, T(0.5, 0.0, 0.0, 1.0).view(2, 2))   # d/dm mean_i |m_i - a_i|^2
 
 
 # ---------------------------------------------------------------------- agents
@@ -533,3 +568,55 @@ def test_frozen_replay_keeps_updating_on_the_stored_transitions():
     empty = _agent(SQIL, freeze_replay=True)
     with pytest.raises(RuntimeError, match="no update would ever run"):
         empty.fit(_dataset(n=10))
+
+
+def _random_action_gap(agent, obs: torch.Tensor, actions: torch.Tensor, k: int = 64) -> float:
+    """Mean over states of max_k Q(s, a_k) - Q(s, a_stored), a_k uniform random (the diagnostics' Q gap)."""
+    gen = torch.Generator().manual_seed(0)
+    with torch.no_grad():
+        q_rand = torch.stack([agent.sac.critic(obs, torch.rand(len(obs), ACT_DIM, generator=gen) * 2 - 1)[0]
+                              for _ in range(k)])
+        return (q_rand.amax(0) - agent.sac.critic(obs, actions)[0]).mean().item()
+
+
+def test_conservative_weight_ranks_random_actions_closer_to_the_stored_ones():
+    # the agent always took the same action; the mixture loss pushes its Q down (towards r_min + gamma V(s'))
+    # and leaves other actions free, so the best random action ends up above it: the Q gap of the diagnostics
+    data = [(o, np.full(ACT_DIM, 0.5), r, o2, ab, last) for o, _, r, o2, ab, last in _dataset(n=600)]
+    gaps = {}
+    for weight, hinge in ((0.0, False), (5.0, False), (5.0, True)):
+        agent = _agent(LSIQ, objective="mixture", critic_lr=1e-3, conservative_weight=weight, conservative_actions=4,
+                       conservative_hinge=hinge)
+        agent.fit(data)
+        assert ("conservative_penalty" in agent.last_info) == (weight > 0)
+        replay = agent.replay.sample(256, np.random.default_rng(1))
+        gaps[weight, hinge] = _random_action_gap(agent, replay["obs"], replay["actions"])
+    off = gaps[0.0, False]
+    assert off > 1.0 and gaps[5.0, False] < 0.5 * off and gaps[5.0, True] < 0.5 * off, gaps
+
+
+@pytest.mark.parametrize("kw", [{"conservative_weight": -1.0}, {"conservative_actions": 0}])
+def test_conservative_penalty_settings_rejected(kw):
+    with pytest.raises(ValueError, match="conservative"):
+        _agent(SQIL, **kw)
+
+
+def test_actor_bc_term_pulls_the_mean_action_to_the_expert_actions():
+    expert = _expert()
+    expert.actions = np.tanh(expert.obs[:, :ACT_DIM])          # a learnable expert: its action follows its state
+    obs, actions = torch.as_tensor(expert.obs, dtype=torch.float32), torch.as_tensor(expert.actions, dtype=torch.float32)
+    errors = {}
+    for bc_alpha in (None, 0.1):
+        agent = _agent(LSIQ, actor_lr=1e-3, actor_bc_alpha=bc_alpha)
+        agent.set_expert(expert)
+        agent.fit(_dataset(n=300))
+        with torch.no_grad():
+            errors[bc_alpha] = (agent.policy_module.deterministic(obs) - actions).pow(2).sum(-1).mean().item()
+    assert errors[0.1] < 0.5 * errors[None], errors
+
+
+def test_actor_bc_settings_rejected():
+    with pytest.raises(ValueError, match="actor_bc_alpha must be > 0"):
+        _agent(SQIL, actor_bc_alpha=0.0)
+    with pytest.raises(ValueError, match="state-only"):
+        _agent(LSIQfO, actor_bc_alpha=2.5)

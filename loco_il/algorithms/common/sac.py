@@ -32,12 +32,41 @@ def actor_loss(alpha: torch.Tensor, log_prob: torch.Tensor, q_min: torch.Tensor)
     return (alpha * log_prob - q_min).mean()
 
 
+def bc_regularized_actor_loss(sac_loss: torch.Tensor, q: torch.Tensor, mean_action: torch.Tensor,
+                              expert_action: torch.Tensor, bc_alpha: float) -> torch.Tensor:
+    """TD3+BC's actor objective (Fujimoto & Gu 2021, "A Minimalist Approach to Offline Reinforcement Learning",
+    arXiv:2106.06860) around SAC's loss: lambda * J_pi + E_E[|pi(s) - a|^2], lambda = bc_alpha / mean |Q|.
+
+    Dividing by the batch's mean |Q| (no gradient) makes bc_alpha independent of the critic's scale (LS-IQ's Q
+    reaches 1/(c (1 - gamma)) = 200); the paper's alpha is 2.5. mean_action: the policy's squashed mean at the
+    expert states; expert_action: the expert's actions there.
+    """
+    lam = bc_alpha / q.detach().abs().mean().clamp(min=1e-6)
+    return lam * sac_loss + (mean_action - expert_action).pow(2).sum(-1).mean()
+
+
 def temperature_loss(log_alpha: torch.Tensor, log_prob: torch.Tensor, target_entropy: float) -> torch.Tensor:
     """SAC temperature loss (Eq. 18): E[-alpha (log pi + target_entropy)], alpha = exp(log_alpha).
 
     Its gradient raises alpha when the policy's entropy -log pi is below the target and lowers it above.
     """
     return -(log_alpha.exp() * (log_prob.detach() + target_entropy)).mean()
+
+
+def conservative_penalty(q_random: torch.Tensor, q_data: torch.Tensor, hinge: bool = False) -> torch.Tensor:
+    """CQL(H)'s critic penalty (Kumar et al. 2020, "Conservative Q-Learning for Offline Reinforcement Learning",
+    arXiv:2006.04779): E_s[log mean_k exp Q(s, a_k) - Q(s, a_data)], a_k uniform random actions.
+
+    q_random (H, K, N): each head's Q of K random actions at N states; q_data (H, N): of the stored action.
+    Minimizing it lowers the soft maximum of Q over the action space relative to the data's actions. Summed
+    over heads. (log mean = logsumexp - log K: the constant changes nothing but makes it 0 when all are equal.)
+    hinge=True (our variant): each state's term is clipped at 0 from below, so the penalty only acts where
+    random actions look better than the stored one and cannot drive them ever lower (CQL's own term has no
+    floor: on Hopper it opened a gap of ~90 within 5k updates, benchmarks/RESULTS.md).
+    """
+    k = q_random.shape[-2]
+    gap = torch.logsumexp(q_random, dim=-2) - math.log(k) - q_data
+    return (gap.clamp(min=0.0) if hinge else gap).mean(-1).sum()
 
 
 @torch.no_grad()
@@ -95,13 +124,21 @@ class SACCore:
             nn.utils.clip_grad_norm_(self._critic_params, self.critic_grad_clip)
         self.critic_opt.step()
 
-    def actor_step(self, obs: torch.Tensor) -> dict[str, torch.Tensor]:
-        """One actor step on the states `obs`, then (if learned) one temperature step."""
+    def actor_step(self, obs: torch.Tensor, bc: tuple[torch.Tensor, torch.Tensor, float] | None = None
+                   ) -> dict[str, torch.Tensor]:
+        """One actor step on the states `obs`, then (if learned) one temperature step.
+
+        bc = (expert states, expert actions, alpha): TD3+BC's behaviour-cloning term (`bc_regularized_actor_loss`).
+        """
         for p in self._critic_params:  # gradients only into the policy
             p.requires_grad_(False)
         try:
             a, logp = self.policy.sample(obs)
-            loss = actor_loss(self.alpha, logp, self.critic(obs, a).amin(0))
+            q = self.critic(obs, a).amin(0)
+            loss = actor_loss(self.alpha, logp, q)
+            if bc is not None:
+                bc_obs, bc_act, bc_alpha = bc
+                loss = bc_regularized_actor_loss(loss, q, self.policy.deterministic(bc_obs), bc_act, bc_alpha)
             self.actor_opt.zero_grad(set_to_none=True)
             loss.backward()
             self.actor_opt.step()
@@ -155,6 +192,18 @@ class OffPolicyILAgent(ILAgent):
     `freeze_replay=True` (an ablation, e.g. for a fork): new transitions are no longer stored, so the updates go on
     over the replay memory as it is; whether a change of behaviour comes from the data the agent collects or
     from the updates themselves.
+
+    `conservative_weight` w > 0 (an ablation, our addition; 0 = off): the critic loss gains w times CQL's
+    penalty (`conservative_penalty`) on the agent batch's states, with `conservative_actions` uniform random
+    actions against the stored action. It tests whether a critic that ranks actions the agent never took above
+    its own (the "Q gap" of benchmarks/offpolicy_diagnostics.py) is what makes a learner leave the expert.
+    `actor_bc_alpha` (an ablation, our addition; None = off): the actor's loss becomes TD3+BC's, SAC's loss
+    scaled by actor_bc_alpha / mean |Q| plus the squared distance of the policy's mean action to the expert's
+    action at the expert batch's states (`bc_regularized_actor_loss`); a policy constraint that tests whether
+    anchoring the actor at the demonstrations keeps it at the expert. Needs the expert's actions.
+
+    `conservative_hinge=True` clips each state's term at 0 (see `conservative_penalty`). It costs one more
+    critic forward on (K + 1) x batch_size rows per update.
     """
 
     needs_expert_actions = True
@@ -167,7 +216,8 @@ class OffPolicyILAgent(ILAgent):
                  random_initial_steps: int = 0, updates_per_step: int = 1, actor_delay: int = 1,
                  critic_grad_clip: float | None = None, actor_on_expert_states: bool = True,
                  n_critics: int = 2, gamma: float | None = None, actor_ema: float | None = None,
-                 freeze_replay: bool = False, device: str = "cpu", seed: int | None = None):
+                 freeze_replay: bool = False, conservative_weight: float = 0.0, conservative_actions: int = 10,
+                 conservative_hinge: bool = False, actor_bc_alpha: float | None = None, device: str = "cpu", seed: int | None = None):
         super().__init__(mdp_info, policy_module, device=device, seed=seed)
         self.obs_dim = int(np.prod(mdp_info.observation_space.shape))
         self.act_dim = int(np.prod(mdp_info.action_space.shape))
@@ -186,6 +236,18 @@ class OffPolicyILAgent(ILAgent):
         self.actor_on_expert_states = actor_on_expert_states
         self.replay = TransitionBuffer(replay_capacity, self.obs_dim, self.act_dim, self.device)
         self.freeze_replay = bool(freeze_replay)
+        self.conservative_weight, self.conservative_actions = float(conservative_weight), int(conservative_actions)
+        self.conservative_hinge = bool(conservative_hinge)
+        self.actor_bc_alpha = None if actor_bc_alpha is None else float(actor_bc_alpha)
+        if self.actor_bc_alpha is not None:
+            if not self.actor_bc_alpha > 0.0:
+                raise ValueError(f"actor_bc_alpha must be > 0 (or None: off), got {actor_bc_alpha}")
+            if not self.needs_expert_actions:
+                raise ValueError(f"actor_bc_alpha needs the expert's actions, which {type(self).__name__} "
+                                 "does not use (a state-only learner)")
+        if self.conservative_weight < 0.0 or self.conservative_actions < 1:
+            raise ValueError("conservative_weight must be >= 0 and conservative_actions >= 1, got "
+                             f"{conservative_weight} and {conservative_actions}")
         self.expert_buffer: TransitionBuffer | None = None
         self.n_transitions = 0
         self.n_updates = 0
@@ -234,11 +296,16 @@ class OffPolicyILAgent(ILAgent):
         expert = self.expert_buffer.sample(self.expert_batch_size, self.rng)
         policy = self.replay.sample(self.batch_size, self.rng)
         loss, info = self.critic_loss(expert, policy)
+        if self.conservative_weight > 0.0:
+            penalty = self.conservative_term(policy)
+            loss = loss + self.conservative_weight * penalty
+            info["conservative_penalty"] = penalty.detach()
         self.sac.critic_step(loss)
         info["critic_loss"] = loss.detach()
         if self.n_updates % self.actor_delay == 0:
             states = torch.cat([expert["obs"], policy["obs"]]) if self.actor_on_expert_states else policy["obs"]
-            info.update(self.sac.actor_step(states))
+            bc = None if self.actor_bc_alpha is None else (expert["obs"], expert["actions"], self.actor_bc_alpha)
+            info.update(self.sac.actor_step(states, bc))
             if self.policy_ema is not None:
                 with torch.no_grad():
                     torch._foreach_lerp_(*self._ema_pairs, self.actor_ema)
@@ -268,6 +335,15 @@ class OffPolicyILAgent(ILAgent):
             yield self
         finally:
             self.policy_module.load_state_dict(live)
+
+    def conservative_term(self, policy: dict) -> torch.Tensor:
+        """`conservative_penalty` at the agent batch's states: K uniform random actions in [-1, 1] (the squashed
+        policy's action box) against the stored action, one critic forward for all of them."""
+        obs, act = policy["obs"], policy["actions"]
+        n, k = len(obs), self.conservative_actions
+        random_act = torch.rand(k * n, self.act_dim, device=obs.device) * 2.0 - 1.0
+        qs = self.sac.critic(obs.repeat(k + 1, 1), torch.cat([random_act, act]))  # (H, (K + 1) N), k-major
+        return conservative_penalty(qs[:, :k * n].unflatten(1, (k, n)), qs[:, k * n:], self.conservative_hinge)
 
     def critic_loss(self, expert: dict, policy: dict) -> tuple[torch.Tensor, dict]:
         """The method-specific critic objective on one expert and one agent batch."""
