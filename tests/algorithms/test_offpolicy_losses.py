@@ -604,7 +604,7 @@ def test_conservative_penalty_settings_rejected(kw):
 def test_actor_bc_term_pulls_the_mean_action_to_the_expert_actions():
     expert = _expert()
     expert.actions = np.tanh(expert.obs[:, :ACT_DIM])          # a learnable expert: its action follows its state
-    obs, actions = torch.as_tensor(expert.obs, dtype=torch.float32), torch.as_tensor(expert.actions, dtype=torch.float32)
+    obs, actions = (torch.as_tensor(x, dtype=torch.float32) for x in (expert.obs, expert.actions))
     errors = {}
     for bc_alpha in (None, 0.1):
         agent = _agent(LSIQ, actor_lr=1e-3, actor_bc_alpha=bc_alpha)

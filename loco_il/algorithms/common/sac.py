@@ -197,13 +197,13 @@ class OffPolicyILAgent(ILAgent):
     penalty (`conservative_penalty`) on the agent batch's states, with `conservative_actions` uniform random
     actions against the stored action. It tests whether a critic that ranks actions the agent never took above
     its own (the "Q gap" of benchmarks/offpolicy_diagnostics.py) is what makes a learner leave the expert.
+    `conservative_hinge=True` clips each state's term at 0 (see `conservative_penalty`). It costs one more
+    critic forward on (K + 1) x batch_size rows per update.
+
     `actor_bc_alpha` (an ablation, our addition; None = off): the actor's loss becomes TD3+BC's, SAC's loss
     scaled by actor_bc_alpha / mean |Q| plus the squared distance of the policy's mean action to the expert's
     action at the expert batch's states (`bc_regularized_actor_loss`); a policy constraint that tests whether
     anchoring the actor at the demonstrations keeps it at the expert. Needs the expert's actions.
-
-    `conservative_hinge=True` clips each state's term at 0 (see `conservative_penalty`). It costs one more
-    critic forward on (K + 1) x batch_size rows per update.
     """
 
     needs_expert_actions = True
@@ -217,7 +217,8 @@ class OffPolicyILAgent(ILAgent):
                  critic_grad_clip: float | None = None, actor_on_expert_states: bool = True,
                  n_critics: int = 2, gamma: float | None = None, actor_ema: float | None = None,
                  freeze_replay: bool = False, conservative_weight: float = 0.0, conservative_actions: int = 10,
-                 conservative_hinge: bool = False, actor_bc_alpha: float | None = None, device: str = "cpu", seed: int | None = None):
+                 conservative_hinge: bool = False, actor_bc_alpha: float | None = None,
+                 device: str = "cpu", seed: int | None = None):
         super().__init__(mdp_info, policy_module, device=device, seed=seed)
         self.obs_dim = int(np.prod(mdp_info.observation_space.shape))
         self.act_dim = int(np.prod(mdp_info.action_space.shape))
