@@ -15,6 +15,10 @@ Note that the IL critics do inherently more work than SAC's: IQ-Learn and LS-IQ 
 the critic also on (s, a~pi(s)) and IQ-Learn on (s', a'~pi) with gradient; LSIQ-fO trains an inverse
 dynamics model every update.
 
+`--device cuda` runs the networks, replay memory and updates on the GPU (timed blocks end with
+`torch.cuda.synchronize()`); `--graphed-bare` adds the bare update replayed from a CUDA graph and the agents
+with `cuda_graph=True`, each against the graphed bare update of its shape (rows '... graph').
+
 Part 2 -- on-policy env throughput. Env steps/s of GAIL, VAIL and GAIfO driven by mushroom-rl's
 `Core.learn(n_steps, n_steps_per_fit)` on `--task` (default `Hopper.run.perfect`; draw_action per step,
 then every `n_steps_per_fit` steps the discriminator (every `train_disc_every`-th fit) and a TRPO step
@@ -25,6 +29,7 @@ depend on its content; use it for tasks whose dataset is not cached, e.g. `--tas
 
     python benchmarks/il_speed.py [--updates 20 --reps 5] [--offpolicy ...] [--onpolicy gail vail gaifo]
                                   [--onpolicy-fits 6 --onpolicy-reps 3] [--task Hopper.run.perfect] [--random-expert]
+                                  [--device cpu|cuda] [--compiled-bare] [--graphed-bare]
     (an empty `--offpolicy` or `--onpolicy` skips that part)
 """
 from __future__ import annotations
@@ -44,6 +49,7 @@ from mushroom_rl.core import Core, MDPInfo
 from mushroom_rl.utils.spaces import Box
 
 from loco_il.algorithms.factory import build_agent
+from loco_il.algorithms.common.cuda_graph import GraphedStep, make_capturable
 from loco_il.algorithms.common.networks import EnsembleQ, GaussianPolicy, mlp
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -61,31 +67,36 @@ class BareSAC:
     `n_critics` critic heads (2: SAC's twin critic; 1: one critic), the agents' `EnsembleQ`."""
 
     def __init__(self, n: int, batch: int, hidden=(256, 256), gamma=0.99, tau=0.005, lr=3e-4, seed=0,
-                 n_critics: int = 2, idm: bool = False):
+                 n_critics: int = 2, idm: bool = False, device: str = "cpu"):
         g = torch.Generator().manual_seed(seed)
-        self.obs = torch.randn(n, OBS_DIM, generator=g)
-        self.next_obs = torch.randn(n, OBS_DIM, generator=g)
-        self.act = torch.rand(n, ACT_DIM, generator=g) * 2 - 1
-        self.rew = torch.randn(n, generator=g)
-        self.absorbing = (torch.rand(n, generator=g) < 0.01).float()
+        self.device = torch.device(device)
+        # the replay tensors live on the update's device, as in the agents' TransitionBuffer
+        self.obs = torch.randn(n, OBS_DIM, generator=g).to(self.device)
+        self.next_obs = torch.randn(n, OBS_DIM, generator=g).to(self.device)
+        self.act = (torch.rand(n, ACT_DIM, generator=g) * 2 - 1).to(self.device)
+        self.rew = torch.randn(n, generator=g).to(self.device)
+        self.absorbing = (torch.rand(n, generator=g) < 0.01).float().to(self.device)
         self.rng = np.random.default_rng(seed)
         self.batch, self.gamma, self.tau = batch, gamma, tau
-        self.pi = GaussianPolicy(OBS_DIM, ACT_DIM, hidden, squash=True)
-        self.q = EnsembleQ(OBS_DIM, ACT_DIM, hidden, n_heads=n_critics)
+        self.pi = GaussianPolicy(OBS_DIM, ACT_DIM, hidden, squash=True).to(self.device)
+        self.q = EnsembleQ(OBS_DIM, ACT_DIM, hidden, n_heads=n_critics).to(self.device)
         self.q_targ = copy.deepcopy(self.q).requires_grad_(False)
-        self.log_alpha = torch.zeros((), requires_grad=True)
+        self.log_alpha = torch.zeros((), device=self.device, requires_grad=True)
         # foreach=True as in SACCore, so that the ratio measures the agents' overheads, not the optimizer kind
         self.pi_opt = torch.optim.Adam(self.pi.parameters(), lr=lr, foreach=True)
         self.q_opt = torch.optim.Adam(self.q.parameters(), lr=lr, foreach=True)
         self.a_opt = torch.optim.Adam([self.log_alpha], lr=lr, foreach=True)
         self.q_params, self.t_params = list(self.q.parameters()), list(self.q_targ.parameters())
         self.target_entropy = -float(ACT_DIM)
-        self.idm = nn.Sequential(mlp(2 * OBS_DIM, ACT_DIM, hidden), nn.Tanh()) if idm else None
+        self.idm = nn.Sequential(mlp(2 * OBS_DIM, ACT_DIM, hidden), nn.Tanh()).to(self.device) if idm else None
         if idm:
             self.idm_opt = torch.optim.Adam(self.idm.parameters(), lr=lr, foreach=True)
 
     def update(self) -> None:
-        idx = torch.as_tensor(self.rng.integers(0, len(self.obs), size=self.batch))
+        self.step(torch.as_tensor(self.rng.integers(0, len(self.obs), size=self.batch)).to(self.device))
+
+    def step(self, idx: torch.Tensor) -> None:
+        """One SAC update on the replay rows `idx`."""
         s, a, r, s2, d = self.obs[idx], self.act[idx], self.rew[idx], self.next_obs[idx], self.absorbing[idx]
         if self.idm is not None:  # inverse dynamics regression on the agent half of the batch, as LSIQ-fO does
             h = self.batch // 2
@@ -123,11 +134,12 @@ def random_mdp_info() -> MDPInfo:
                    Box(-np.ones(ACT_DIM), np.ones(ACT_DIM)), gamma=0.99, horizon=1000, dt=0.008)
 
 
-def make_offpolicy_agent(name: str, n_replay: int, seed: int = 0):
+def make_offpolicy_agent(name: str, n_replay: int, seed: int = 0, device: str = "cpu", cuda_graph: bool = False):
     cfg = load_cfg("lsiq" if name == "lsiqfo" else name)
     cfg["name"] = name
     cfg["params"]["replay_capacity"] = n_replay
-    agent = build_agent(name, random_mdp_info(), cfg, seed=seed)
+    cfg["params"]["cuda_graph"] = cuda_graph
+    agent = build_agent(name, random_mdp_info(), cfg, seed=seed, device=device)
     rng = np.random.default_rng(seed)
     n_exp = 10_000
     expert = SimpleNamespace(obs=rng.standard_normal((n_exp, OBS_DIM)), next_obs=rng.standard_normal((n_exp, OBS_DIM)),
@@ -141,10 +153,32 @@ def make_offpolicy_agent(name: str, n_replay: int, seed: int = 0):
     return agent
 
 
-def compiled_bare_sac(n_replay: int) -> BareSAC:
+class GraphedBareSAC(BareSAC):
+    """The bare SAC update replayed from a CUDA graph through the agents' own `GraphedStep` (3 eager updates,
+    then capture): the floor of the agents with `cuda_graph=True`."""
+
+    def __init__(self, n: int, batch: int, device: str = "cuda", **kwargs):
+        super().__init__(n, batch, device=device, **kwargs)
+        if self.device.type != "cuda":
+            raise ValueError("GraphedBareSAC needs a CUDA device")
+        make_capturable([self.pi_opt, self.q_opt, self.a_opt] + ([self.idm_opt] if self.idm is not None else []))
+        self.graphed = GraphedStep(self.step)
+        for _ in range(self.graphed.n_warmup + 1):  # warm up and capture, so that timing sees replays only
+            self.update()
+        before = self.q_params[0].detach().clone()
+        self.update()
+        torch.cuda.synchronize()
+        if torch.equal(before, self.q_params[0]) or not torch.isfinite(self.q_params[0]).all():
+            raise RuntimeError("a replay of the captured update did not update the critic")
+
+    def update(self) -> None:
+        self.graphed(torch.as_tensor(self.rng.integers(0, len(self.obs), size=self.batch)).to(self.device))
+
+
+def compiled_bare_sac(n_replay: int, device: str = "cpu") -> BareSAC:
     """The bare SAC update with `torch.compile`d critic forward and policy sample (backward through AOTAutograd):
     whether compiling pays for these small networks on this machine."""
-    bare = BareSAC(n_replay, 512)
+    bare = BareSAC(n_replay, 512, device=device)
     bare.q.forward = torch.compile(bare.q.forward)
     bare.pi.sample = torch.compile(bare.pi.sample)
     t0 = time.perf_counter()
@@ -154,22 +188,32 @@ def compiled_bare_sac(n_replay: int) -> BareSAC:
     return bare
 
 
-def bare_name(n_critics: int, idm: bool = False) -> str:
-    return ("bare SAC" if n_critics == 2 else f"bare SAC {n_critics}Q") + ("+IDM" if idm else "")
+def bare_name(n_critics: int, idm: bool = False, graphed: bool = False) -> str:
+    return ("bare SAC" if n_critics == 2 else f"bare SAC {n_critics}Q") + ("+IDM" if idm else "") + \
+        (" graph" if graphed else "")
 
 
-def bench_offpolicy(names, updates: int, reps: int, with_compiled: bool = False) -> dict[str, float]:
+def bench_offpolicy(names, updates: int, reps: int, with_compiled: bool = False,
+                    device: str = "cpu", with_graphed: bool = False) -> dict[str, float]:
     """Median seconds per update of each agent and of the bare SAC update with the same number of critic heads
-    (each agent's ratio is taken against that one)."""
+    (each agent's ratio is taken against that one), all on `device`."""
     n_replay = 20_000
-    agents = {name: make_offpolicy_agent(name, n_replay) for name in names}
+    agents = {name: make_offpolicy_agent(name, n_replay, device=device) for name in names}
+    if with_graphed:  # the same agents with cuda_graph=True, each against the graphed bare update of its shape
+        agents.update({f"{name} graph": make_offpolicy_agent(name, n_replay, device=device, cuda_graph=True)
+                       for name in names})
     # the bare update each agent is compared with: same critic count, plus the IDM step where the agent has one
-    shapes = {name: (agent.sac.critic.n_heads, hasattr(agent, "idm")) for name, agent in agents.items()}
-    wanted = {(2, False)} | set(shapes.values()) | {(n, False) for n, _ in shapes.values()}
-    runners = {bare_name(*shape): BareSAC(n_replay, 512, n_critics=shape[0], idm=shape[1]).update
+    shapes = {name: (agent.sac.critic.n_heads, hasattr(agent, "idm"), agent.cuda_graph)
+              for name, agent in agents.items()}
+    wanted = {(2, False, False)} | set(shapes.values()) | {(n, False, g) for n, _, g in shapes.values()}
+    bare_kind = {False: BareSAC, True: GraphedBareSAC}
+    runners = {bare_name(*shape): bare_kind[shape[2]](n_replay, 512, n_critics=shape[0], idm=shape[1],
+                                                      device=device).update
                for shape in sorted(wanted, reverse=True)}
     if with_compiled:
-        runners["compiled"] = compiled_bare_sac(n_replay).update
+        runners["compiled"] = compiled_bare_sac(n_replay, device).update
+    # CUDA runs asynchronously: a block's time counts only once its kernels have finished
+    sync = torch.cuda.synchronize if torch.device(device).type == "cuda" else (lambda: None)
     runners.update({name: agent.update for name, agent in agents.items()})
     for fn in runners.values():  # warm-up
         for _ in range(10):
@@ -177,21 +221,26 @@ def bench_offpolicy(names, updates: int, reps: int, with_compiled: bool = False)
     times: dict[str, list[float]] = {k: [] for k in runners}
     for _ in range(reps):
         for key, fn in runners.items():
+            sync()
             start = time.perf_counter()
             for _ in range(updates):
                 fn()
+            sync()
             times[key].append((time.perf_counter() - start) / updates)
     med = {k: statistics.median(v) for k, v in times.items()}
     print("\n## Off-policy: one update, [256, 256] networks, 256 agent + 256 expert samples "
-          f"(bare SAC: batch 512), median of {reps} x {updates} updates, 1 thread")
-    print(f"{'agent':<16}{'ms/update':>9}{'ratio':>8}  against     (goal <= 1.2x)")
+          f"(bare SAC: batch 512), median of {reps} x {updates} updates, device {device}, 1 CPU thread")
+    print(f"{'agent':<22}{'ms/update':>9}{'ratio':>8}  against     (goal <= 1.2x)")
     for k, v in med.items():
-        base = bare_name(*shapes.get(k, (2, False)))
-        print(f"{k:<16}{1e3 * v:>9.2f}{v / med[base]:>8.2f}  {base}")
-    for k, (n, idm) in shapes.items():
+        base = bare_name(*shapes.get(k, (2, False, k.endswith(" graph"))))
+        print(f"{k:<22}{1e3 * v:>9.2f}{v / med[base]:>8.2f}  {base}")
+    for k, (n, idm, graphed) in shapes.items():
         if idm:
-            print(f"{k} against {bare_name(n)} (SAC's networks only, without the IDM step): "
-                  f"{med[k] / med[bare_name(n)]:.2f}")
+            print(f"{k} against {bare_name(n, graphed=graphed)} (SAC's networks only, without the IDM step): "
+                  f"{med[k] / med[bare_name(n, graphed=graphed)]:.2f}")
+    if with_graphed:
+        for name in names:
+            print(f"{name}: eager / graphed update time {med[name] / med[name + ' graph']:.2f}x")
     return med
 
 
@@ -213,7 +262,7 @@ def bench_env(env, n_steps: int, seed: int = 0) -> float:
     return n_steps / (time.perf_counter() - start)
 
 
-def bench_onpolicy(names, n_fits: int, reps: int, expert, task: str) -> None:
+def bench_onpolicy(names, n_fits: int, reps: int, expert, task: str, device: str = "cpu") -> None:
     from loco_il import LocoEnv
     env = LocoEnv.make(task)
     rows = []
@@ -221,7 +270,7 @@ def bench_onpolicy(names, n_fits: int, reps: int, expert, task: str) -> None:
     cores = {}
     for name in names:
         cfg = load_cfg(name)
-        agent = build_agent(name, env.info, cfg, seed=0)
+        agent = build_agent(name, env.info, cfg, seed=0, device=device)
         agent.set_expert(expert)
         spf = int(cfg["core"]["n_steps_per_fit"])
         cores[name] = (Core(agent, env), spf)
@@ -252,7 +301,7 @@ def bench_onpolicy(names, n_fits: int, reps: int, expert, task: str) -> None:
     base = med["bare env"]
     env_us = 1e6 / base
     print(f"\n## On-policy: env steps/s on {task}, Core.learn with n_steps_per_fit from the configs, "
-          f"{n_fits} fits per block, median of {reps} blocks, 1 thread")
+          f"{n_fits} fits per block, median of {reps} blocks, networks on {device}, 1 CPU thread")
     print(f"{'agent':<10}{'steps/s':>10}{'ratio':>8}  (goal >= 0.7x)")
     for k, v in med.items():
         print(f"{k:<10}{v:>10.0f}{v / base:>8.2f}")
@@ -280,12 +329,21 @@ def main() -> None:
                         help="off-policy part: also time the bare SAC update with torch.compile'd networks (row 'compiled')")
     parser.add_argument("--random-expert", action="store_true",
                         help="on-policy part: random expert data of the task's shape instead of its dataset")
+    parser.add_argument("--graphed-bare", action="store_true",
+                        help="off-policy part, CUDA only: also time the bare SAC update replayed from a CUDA graph "
+                             "and the agents with cuda_graph=True (rows '... graph')")
+    parser.add_argument("--device", default="cpu", help="torch device of the networks and updates (cpu, cuda)")
     args = parser.parse_args()
+    if torch.device(args.device).type == "cuda" and not torch.cuda.is_available():
+        parser.error(f"--device {args.device}: torch {torch.__version__} sees no CUDA device")
+    if args.graphed_bare and torch.device(args.device).type != "cuda":
+        parser.error("--graphed-bare needs --device cuda (CUDA graphs)")
     torch.set_num_threads(1)
     torch.manual_seed(0)
-    print(f"torch {torch.__version__}, threads {torch.get_num_threads()}")
+    gpu = f", {torch.cuda.get_device_name(args.device)}" if torch.device(args.device).type == "cuda" else ""
+    print(f"torch {torch.__version__}, threads {torch.get_num_threads()}, device {args.device}{gpu}")
     if args.offpolicy:
-        bench_offpolicy(args.offpolicy, args.updates, args.reps, args.compiled_bare)
+        bench_offpolicy(args.offpolicy, args.updates, args.reps, args.compiled_bare, args.device, args.graphed_bare)
     if args.onpolicy:
         from loco_il import LocoEnv
         if args.random_expert:
@@ -298,7 +356,7 @@ def main() -> None:
                                      last=np.zeros(n, bool), rewards=np.zeros(n), info={})
         else:
             expert = LocoEnv.make(args.task).create_dataset(verbose=False)
-        bench_onpolicy(args.onpolicy, args.onpolicy_fits, args.onpolicy_reps, expert, args.task)
+        bench_onpolicy(args.onpolicy, args.onpolicy_fits, args.onpolicy_reps, expert, args.task, args.device)
 
 
 if __name__ == "__main__":

@@ -170,8 +170,14 @@ class LSIQfO(LSIQ):
         self.idm = nn.Sequential(mlp(2 * self.obs_dim, self.act_dim, idm_hidden), nn.Tanh()).to(self.device)
         self.idm_opt = torch.optim.Adam(self.idm.parameters(), lr=idm_lr, foreach=True)  # as SACCore's optimizers
         self.idm_steps_per_update = idm_steps_per_update
+        if self.cuda_graph and idm_steps_per_update != 1:
+            # the extra IDM batches are drawn inside the update, which a captured graph would freeze
+            raise ValueError(f"cuda_graph=True needs idm_steps_per_update=1, got {idm_steps_per_update}")
         self._register_checkpoint("idm", self.idm)
         self._register_checkpoint("idm_opt", self.idm_opt)
+
+    def optimizers(self) -> list[torch.optim.Optimizer]:
+        return [*super().optimizers(), self.idm_opt]
 
     def critic_loss(self, expert, policy):
         for step in range(self.idm_steps_per_update):

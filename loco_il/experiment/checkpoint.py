@@ -33,10 +33,11 @@ from loco_il.utils.atomic import atomic_torch_save
 FORMAT = "loco_il.run_checkpoint/v1"
 CHECKPOINT_NAME = "checkpoint.pt"
 
-#: keys of the run config that may change between a run and its resumption
+#: keys of the run config (dotted where nested) that may change between a run and its resumption
 RESUMABLE_KEYS = frozenset({"resume", "stop_after_steps", "logger", "eval", "n_steps", "checkpoint_every",
                             "checkpoint_replay", "fork_from", "keep_checkpoints_above",
-                            "device", "torch_threads", "results_dir", "per_algo"})
+                            "device", "torch_threads", "results_dir", "per_algo",
+                            "algo.params.cuda_graph"})  # how an update is launched, not what it computes
 #: config keys added after runs may have been checkpointed, with the value that behaves as those runs did:
 #: a checkpoint without the key resumes when the new config holds that value
 ADDED_KEYS: dict[str, Any] = {"init_state": "default", "algo.policy.log_std_bounds": [-20.0, 2.0],
@@ -129,12 +130,12 @@ def restore(ckpt: Mapping[str, Any], *, agent: Any, env: Any) -> None:
 
 
 def config_differences(old: Mapping[str, Any], new: Mapping[str, Any], prefix: str = "") -> list[str]:
-    """Dotted keys whose values differ, ignoring `RESUMABLE_KEYS` at the top level."""
+    """Dotted keys whose values differ, ignoring `RESUMABLE_KEYS`."""
     diffs = []
     for key in sorted(set(old) | set(new)):
-        if not prefix and key in RESUMABLE_KEYS:
-            continue
         name = f"{prefix}{key}"
+        if name in RESUMABLE_KEYS:
+            continue
         a, b = old.get(key, ADDED_KEYS.get(name, "<missing>")), new.get(key, "<missing>")
         if isinstance(a, Mapping) and isinstance(b, Mapping):
             diffs.extend(config_differences(a, b, name + "."))

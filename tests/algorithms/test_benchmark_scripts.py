@@ -89,3 +89,18 @@ def test_il_baselines_reads_set_values_as_yaml_with_exponent_floats():
     parse = load_script("il_baselines").parse_value
     assert [parse(x) for x in ("1e-3", "3.0e-4", "false", "[64,64]", "mixture", "500")] == \
         [0.001, 0.0003, False, [64, 64], "mixture", 500]
+
+
+def test_train_speed_groups_and_interval_rates(tmp_path):
+    """`train_speed.py`: a group is DEVICE:COUNT[,...]; a run's rate skips the intervals up to its first update."""
+    import argparse
+    speed = load_script("train_speed")
+    assert speed.parse_group("cpu:1,cuda:6") == [("cpu", 1), ("cuda", 6)]
+    for bad in ("cpu", "cpu:0", "cuda:x", ":2"):
+        with pytest.raises(argparse.ArgumentTypeError, match="DEVICE:COUNT"):
+            speed.parse_group(bad)
+    log = tmp_path / "log.csv"
+    log.write_text("step,updates,steps_per_s\n1000,0,2000.0\n2000,1,1500.0\n3000,1001,60.0\n4000,2001,58.0\n")
+    # 1000-2000 ended with the first update (mostly replay filling): only the intervals after it count
+    assert speed.interval_rates(log) == [60.0, 58.0]
+    assert speed.interval_rates(tmp_path / "missing.csv") == []

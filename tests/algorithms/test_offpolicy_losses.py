@@ -412,6 +412,95 @@ def test_state_dict_round_trip(cls, tmp_path):
     np.testing.assert_array_equal([agent.draw_action(s) for s in probe], acts_before)
 
 
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA device")
+@pytest.mark.parametrize("cls", [IQLearn, LSIQ, LSIQfO, SQIL])
+def test_offpolicy_agents_train_on_cuda_resume_there_and_load_on_cpu(cls, tmp_path):
+    agent = _agent(cls, device="cuda")
+    agent.fit(_dataset(n=40))                  # past initial_replay_size (16): one update per new transition
+    assert agent.n_updates == 40
+    assert agent.replay.obs.is_cuda and all(p.is_cuda for p in agent.sac.critic.parameters())
+    assert all(torch.isfinite(p).all() for p in agent.sac.critic.parameters())
+    path = tmp_path / "agent.pt"
+    agent.save(path)
+    probe = np.random.default_rng(5).normal(size=(6, OBS_DIM))
+
+    on_cpu = cls.load(path, device="cpu")      # a GPU run's checkpoint read on a CPU machine
+    assert on_cpu.device.type == "cpu" and not any(p.is_cuda for p in on_cpu.sac.critic.parameters())
+    agent.deterministic = on_cpu.deterministic = True
+    np.testing.assert_allclose([on_cpu.draw_action(s) for s in probe], [agent.draw_action(s) for s in probe],
+                               atol=1e-5)
+    agent.deterministic = False
+
+    # resumed on the GPU, it continues as the original does (the CUDA RNG state is in the checkpoint)
+    resumed = cls.load(path, device="cuda")
+    resumed.set_expert(_expert(with_actions=cls is not LSIQfO))
+    resumed.replay.load_state_dict(agent.replay.state_dict())
+    rng_state = torch.get_rng_state(), torch.cuda.get_rng_state_all()
+    agent.fit(_dataset(seed=2, n=20))
+    torch.set_rng_state(rng_state[0])          # emulate a fresh process for the resumed agent
+    torch.cuda.set_rng_state_all(rng_state[1])
+    resumed.fit(_dataset(seed=2, n=20))
+    for (k, v), v2 in zip(agent.sac.critic.state_dict().items(), resumed.sac.critic.state_dict().values()):
+        torch.testing.assert_close(v, v2, rtol=0, atol=1e-6, msg=k)
+
+
+def _params_close(a: nn.Module, b: nn.Module, atol: float) -> None:
+    for (k, v), v2 in zip(a.state_dict().items(), b.state_dict().values()):
+        torch.testing.assert_close(v, v2, rtol=0, atol=atol, msg=k)
+
+
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA device")
+@pytest.mark.parametrize("cls", [IQLearn, LSIQ, LSIQfO, SQIL])
+def test_cuda_graph_updates_compute_what_the_eager_updates_compute(cls, tmp_path):
+    """cuda_graph=True: 3 eager updates, then the captured one replayed; same parameters as eager updates from the
+    same RNG state, also after a checkpoint (the optimizers' state is replaced on load: captured again)."""
+    eager, graphed = _agent(cls, device="cuda"), _agent(cls, device="cuda", cuda_graph=True)
+    rng_state = torch.get_rng_state(), torch.cuda.get_rng_state_all()
+    eager.fit(_dataset(n=40))
+    torch.set_rng_state(rng_state[0])
+    torch.cuda.set_rng_state_all(rng_state[1])
+    graphed.fit(_dataset(n=40))
+    assert graphed._graphed_step.graph is not None and graphed.n_updates == eager.n_updates == 40
+    for net in ("critic", "critic_target"):
+        _params_close(getattr(eager.sac, net), getattr(graphed.sac, net), atol=1e-5)
+    _params_close(eager.policy_module, graphed.policy_module, atol=1e-5)
+    torch.testing.assert_close(eager.last_info["critic_loss"], graphed.last_info["critic_loss"], rtol=1e-4, atol=1e-5)
+
+    path = tmp_path / "graphed.pt"
+    graphed.save(path)
+    resumed = cls.load(path)
+    assert resumed.cuda_graph and resumed._graphed_step.graph is None
+    resumed.set_expert(_expert(with_actions=cls is not LSIQfO))
+    resumed.replay.load_state_dict(graphed.replay.state_dict())
+    rng_state = torch.get_rng_state(), torch.cuda.get_rng_state_all()
+    graphed.fit(_dataset(seed=2, n=20))
+    torch.set_rng_state(rng_state[0])
+    torch.cuda.set_rng_state_all(rng_state[1])
+    resumed.fit(_dataset(seed=2, n=20))
+    assert resumed._graphed_step.graph is not None
+    _params_close(graphed.sac.critic, resumed.sac.critic, atol=1e-5)
+    assert not cls.load(path, device="cpu").cuda_graph      # read on the CPU: the same updates, eager
+
+
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA device")
+def test_cuda_graph_needs_actor_delay_1():
+    with pytest.raises(ValueError, match="actor_delay=1"):
+        _agent(SQIL, device="cuda", cuda_graph=True, actor_delay=2)
+
+
+def test_cuda_graph_rejected_off_cuda_and_dropped_when_a_graphed_checkpoint_loads_on_the_cpu(tmp_path):
+    with pytest.raises(ValueError, match="needs device=cuda"):
+        _agent(LSIQ, cuda_graph=True)
+    agent = _agent(LSIQ)
+    agent.save(tmp_path / "a.pt")
+    ckpt = torch.load(tmp_path / "a.pt", weights_only=False)
+    ckpt["init_kwargs"]["cuda_graph"] = True                   # as a device=cuda cuda_graph=True run writes it
+    torch.save(ckpt, tmp_path / "graphed.pt")
+    loaded = LSIQ.load(tmp_path / "graphed.pt", device="cpu")
+    assert not loaded.cuda_graph and loaded._graphed_step is None
+    _params_close(agent.sac.critic, loaded.sac.critic, atol=0)
+
+
 def test_deterministic_action_is_squashed_mean():
     agent = _agent(SQIL)
     agent.deterministic = True

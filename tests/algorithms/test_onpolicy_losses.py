@@ -352,6 +352,21 @@ def test_onpolicy_agents_fit_on_cuda(tmp_path, algo):
     assert algo.load(tmp_path / "a.pt", device="cpu").n_fits == 1
 
 
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA device")
+def test_bc_pretrains_on_cuda_and_loads_on_cpu(tmp_path):
+    agent = BC(mdp_info(), small_policy(), device="cuda", seed=0, batch_size=32)
+    agent.set_expert(fake_expert())
+    first = agent.pretrain(1)
+    last = agent.pretrain(200)
+    assert all(p.is_cuda for p in agent.policy_module.parameters())
+    assert last < first  # the negative log-likelihood of the expert actions falls
+    agent.save(tmp_path / "bc.pt")
+    clone = BC.load(tmp_path / "bc.pt", device="cpu")
+    obs = torch.randn(6, 4)
+    assert torch.allclose(clone.policy_module.distribution(obs).loc,
+                          agent.policy_module.distribution(obs.cuda()).loc.cpu(), atol=1e-5)
+
+
 def test_onpolicy_loaded_state_keeps_the_configured_learning_rates():
     """As for the SAC-based agents: a state loaded into an agent built with other learning rates keeps them."""
     source = GAIL(mdp_info(), small_policy(), seed=0, **dict(SMALL, disc_lr=3e-4, vf_lr=3e-4))

@@ -265,6 +265,36 @@ def test_discount_and_actor_average_from_the_command_line(env_vars, tmp_path):
     assert "ema_actor" not in json.loads((run_dir(results, "lsiq_plain") / "eval.json").read_text())
 
 
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA device")
+def test_cuda_run_checkpoints_and_resumes_on_the_cpu(env_vars, tmp_path):
+    """device=cuda trains LS-IQ on the GPU (updates replayed from a CUDA graph); its checkpoint (with the replay
+    memory) resumes with device=cpu and the run finishes there, as a GPU job moved to a CPU machine would."""
+    results = tmp_path / "r"
+    common = [*TINY_LSIQ, "n_steps=400", "eval.every=100", "checkpoint_every=200"]
+    proc = train(env_vars, results, *common, "device=cuda", "algo.params.cuda_graph=true", "stop_after_steps=300",
+                 check=False)
+    assert proc.returncode == 3, proc.stderr[-2000:]
+    d = run_dir(results, "lsiq")
+    ckpt = torch.load(d / "checkpoint.pt", map_location="cpu", weights_only=False)
+    assert ckpt["counters"]["step"] == 200 and "cuda" in ckpt["agent"]["rng"]
+    resumed = train(env_vars, results, *common, "device=cpu", "algo.params.cuda_graph=false")
+    assert "resuming" in resumed.stdout + resumed.stderr
+    result = json.loads((d / "eval.json").read_text())
+    assert result["steps"] == 400 and result["return_mean"] > 0
+    from loco_il.evaluation import load_run_agent
+    agent, _ = load_run_agent(d)
+    assert agent.device.type == "cpu" and agent.n_updates > 0
+
+
+def test_a_run_resumes_with_another_device_or_cuda_graph_but_not_another_objective():
+    from loco_il.experiment.checkpoint import config_differences
+    ran = {"device": "cuda", "algo": {"name": "lsiq", "params": {"cuda_graph": True, "n_critics": 2}}}
+    on_cpu = {"device": "cpu", "algo": {"name": "lsiq", "params": {"cuda_graph": False, "n_critics": 2}}}
+    assert config_differences(ran, on_cpu) == []
+    on_cpu["algo"]["params"]["n_critics"] = 1
+    assert config_differences(ran, on_cpu) == ["algo.params.n_critics: 2 -> 1"]
+
+
 def test_killed_run_resumes(env_vars, tmp_path):
     """SIGKILL once the first checkpoint exists; the same command finishes the run with the full budget."""
     results = tmp_path / "results"

@@ -317,6 +317,8 @@ class ILAgent(Agent):
         kwargs = dict(ckpt["init_kwargs"])
         if device is not None:
             kwargs["device"] = device
+            if torch.device(device).type != "cuda" and kwargs.get("cuda_graph"):
+                kwargs["cuda_graph"] = False  # a CUDA-graph run read on another device: the same updates, eager
         agent = agent_cls(*ckpt["init_args"], **kwargs)
         agent.load_state_dict(ckpt["state"])
         return agent

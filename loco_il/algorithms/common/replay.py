@@ -72,9 +72,17 @@ class TransitionBuffer:
     # ------------------------------------------------------------------ sampling
     def sample(self, batch_size: int, rng: np.random.Generator) -> dict[str, torch.Tensor | None]:
         """Uniform sample with replacement; `rng` is the agent's numpy generator (checkpointed)."""
+        return self.gather(self.sample_indices(batch_size, rng))
+
+    def sample_indices(self, batch_size: int, rng: np.random.Generator) -> torch.Tensor:
+        """The row indices of `sample`, on the buffer's device (drawn apart from the gather so that a CUDA-graph
+        step can take them as its input)."""
         if self._size == 0:
             raise RuntimeError("cannot sample from an empty buffer")
-        idx = torch.as_tensor(rng.integers(0, self._size, size=batch_size)).to(self.device)
+        return torch.as_tensor(rng.integers(0, self._size, size=batch_size)).to(self.device)
+
+    def gather(self, idx: torch.Tensor) -> dict[str, torch.Tensor | None]:
+        """The stored transitions at rows `idx`."""
         return {"obs": self.obs[idx], "next_obs": self.next_obs[idx], "absorbing": self.absorbing[idx],
                 "actions": None if self.actions is None else self.actions[idx],
                 "rewards": None if self.rewards is None else self.rewards[idx]}

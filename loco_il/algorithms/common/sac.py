@@ -22,6 +22,7 @@ import torch
 from torch import nn
 
 from .agent_base import ILAgent, load_optimizer_state
+from .cuda_graph import GraphedStep, make_capturable
 from .networks import EnsembleQ, GaussianPolicy
 from .replay import TransitionBuffer
 
@@ -204,6 +205,10 @@ class OffPolicyILAgent(ILAgent):
     scaled by actor_bc_alpha / mean |Q| plus the squared distance of the policy's mean action to the expert's
     action at the expert batch's states (`bc_regularized_actor_loss`); a policy constraint that tests whether
     anchoring the actor at the demonstrations keeps it at the expert. Needs the expert's actions.
+
+    `cuda_graph=True` (device cuda only): after three eager updates, each update is replayed from a captured
+    CUDA graph (`common/cuda_graph.py`): the same computation in one launch instead of hundreds, for networks
+    too small to keep a GPU busy. Needs `actor_delay=1` (the captured step always takes the actor step).
     """
 
     needs_expert_actions = True
@@ -218,7 +223,7 @@ class OffPolicyILAgent(ILAgent):
                  n_critics: int = 2, gamma: float | None = None, actor_ema: float | None = None,
                  freeze_replay: bool = False, conservative_weight: float = 0.0, conservative_actions: int = 10,
                  conservative_hinge: bool = False, actor_bc_alpha: float | None = None,
-                 device: str = "cpu", seed: int | None = None):
+                 cuda_graph: bool = False, device: str = "cpu", seed: int | None = None):
         super().__init__(mdp_info, policy_module, device=device, seed=seed)
         self.obs_dim = int(np.prod(mdp_info.observation_space.shape))
         self.act_dim = int(np.prod(mdp_info.action_space.shape))
@@ -263,6 +268,13 @@ class OffPolicyILAgent(ILAgent):
             self.policy_ema = copy.deepcopy(self.policy_module).requires_grad_(False)
             self._ema_pairs = (list(self.policy_ema.parameters()), list(self.policy_module.parameters()))
             self._register_checkpoint("policy_ema", self.policy_ema)
+        self.cuda_graph = bool(cuda_graph)
+        if self.cuda_graph and self.device.type != "cuda":
+            raise ValueError(f"cuda_graph=True needs device=cuda (CUDA graphs), the agent is on {self.device}")
+        if self.cuda_graph and self.actor_delay != 1:
+            raise ValueError(f"cuda_graph=True needs actor_delay=1 (the captured update always takes the actor "
+                             f"step), got actor_delay={self.actor_delay}")
+        self._graphed_step = GraphedStep(self._update_step) if self.cuda_graph else None
 
     # ------------------------------------------------------------------ data
     def set_expert(self, expert) -> None:
@@ -294,8 +306,27 @@ class OffPolicyILAgent(ILAgent):
 
     # ------------------------------------------------------------------ learning
     def update(self) -> dict[str, torch.Tensor]:
-        expert = self.expert_buffer.sample(self.expert_batch_size, self.rng)
-        policy = self.replay.sample(self.batch_size, self.rng)
+        expert_idx = self.expert_buffer.sample_indices(self.expert_batch_size, self.rng)
+        policy_idx = self.replay.sample_indices(self.batch_size, self.rng)
+        if self._graphed_step is None:
+            info = self._update_step(expert_idx, policy_idx)
+        else:
+            if self._graphed_step.graph is None:  # warming up or about to capture: Adam must be capturable
+                make_capturable(self.optimizers())
+            info = self._graphed_step(expert_idx, policy_idx)
+        self.n_updates += 1
+        self.last_info = info
+        return info
+
+    def optimizers(self) -> list[torch.optim.Optimizer]:
+        """Every optimizer an update steps (subclasses with networks of their own add theirs)."""
+        return [self.sac.actor_opt, self.sac.critic_opt, self.sac.alpha_opt]
+
+    def _update_step(self, expert_idx: torch.Tensor, policy_idx: torch.Tensor) -> dict[str, torch.Tensor]:
+        """One update on the expert and replay rows given: critic step, actor (+ temperature) step, Polyak step.
+        Free of host synchronisation, so that `cuda_graph=True` can capture it."""
+        expert = self.expert_buffer.gather(expert_idx)
+        policy = self.replay.gather(policy_idx)
         loss, info = self.critic_loss(expert, policy)
         if self.conservative_weight > 0.0:
             penalty = self.conservative_term(policy)
@@ -311,8 +342,6 @@ class OffPolicyILAgent(ILAgent):
                 with torch.no_grad():
                     torch._foreach_lerp_(*self._ema_pairs, self.actor_ema)
         self.sac.update_target()
-        self.n_updates += 1
-        self.last_info = info
         return info
 
     def load_state_dict(self, state: dict) -> None:
@@ -320,6 +349,8 @@ class OffPolicyILAgent(ILAgent):
             # the state of a run without the average (e.g. fork_from with actor_ema added): it starts at the actor
             state = dict(state, policy_ema=state["policy"])
         super().load_state_dict(state)
+        if self._graphed_step is not None:  # the optimizers' state tensors were replaced: capture again
+            self._graphed_step.reset()
 
     @contextlib.contextmanager
     def averaged_actor(self):
