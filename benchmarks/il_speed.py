@@ -93,7 +93,11 @@ class BareSAC:
             self.idm_opt = torch.optim.Adam(self.idm.parameters(), lr=lr, foreach=True)
 
     def update(self) -> None:
-        self.step(torch.as_tensor(self.rng.integers(0, len(self.obs), size=self.batch)).to(self.device))
+        self.step(self.draw_indices())
+
+    def draw_indices(self) -> torch.Tensor:
+        """A batch of replay rows, drawn on the host and copied to the update's device (as the agents do)."""
+        return torch.as_tensor(self.rng.integers(0, len(self.obs), size=self.batch)).to(self.device)
 
     def step(self, idx: torch.Tensor) -> None:
         """One SAC update on the replay rows `idx`."""
@@ -172,7 +176,7 @@ class GraphedBareSAC(BareSAC):
             raise RuntimeError("a replay of the captured update did not update the critic")
 
     def update(self) -> None:
-        self.graphed(torch.as_tensor(self.rng.integers(0, len(self.obs), size=self.batch)).to(self.device))
+        self.graphed(self.draw_indices())
 
 
 def compiled_bare_sac(n_replay: int, device: str = "cpu") -> BareSAC:

@@ -65,26 +65,26 @@ def interval_rates(log_csv: Path) -> list[float]:
 
 def run_group(args, group: list[tuple[str, int]], label: str, results: Path, env: dict) -> list[tuple[str, float]]:
     procs = []
-    seed = 0  # one seed per run of the group, part of its name (the run folder is <name>/seed<seed>)
+    seed = 0  # one seed per run of the group (the run folder is <name>/seed<seed>)
     for device, count in group:
         for _ in range(count):
             name = f"{label}_{device}_{seed}"
             log = open(results / f"{name}.out", "w")
-            procs.append((device, name, subprocess.Popen(train_command(args, device, seed, name, results), cwd=ROOT,
-                                                         env=env, stdout=log, stderr=subprocess.STDOUT), log))
+            proc = subprocess.Popen(train_command(args, device, seed, name, results), cwd=ROOT, env=env, stdout=log,
+                                    stderr=subprocess.STDOUT)
+            procs.append((device, name, seed, proc, log))
             seed += 1
     time.sleep(args.seconds)
-    for _, _, proc, _ in procs:
+    for _, _, _, proc, _ in procs:
         if proc.poll() is None:
             proc.send_signal(signal.SIGTERM)
     out = []
-    for device, name, proc, log in procs:
+    for device, name, seed, proc, log in procs:
         try:
             proc.wait(timeout=120)
         except subprocess.TimeoutExpired:
             proc.kill()
         log.close()
-        seed = name.rsplit("_", 1)[1]
         rates = interval_rates(results / args.task / name / f"seed{seed}" / "log.csv")
         if not rates:
             tail = (results / f"{name}.out").read_text()[-1500:]
