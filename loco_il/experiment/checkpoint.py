@@ -44,7 +44,7 @@ ADDED_KEYS: dict[str, Any] = {"init_state": "default", "algo.policy.log_std_boun
                               "algo.params.n_critics": 2, "algo.params.gamma": None, "algo.params.actor_ema": None,
                               "algo.params.freeze_replay": False, "algo.params.conservative_weight": 0.0,
                               "algo.params.conservative_actions": 10, "algo.params.conservative_hinge": False,
-                              "algo.params.actor_bc_alpha": None}
+                              "algo.params.actor_bc_alpha": None, "algo.params.critic_layer_norm": False}
 
 
 class CheckpointError(RuntimeError):

@@ -11,7 +11,7 @@ from mushroom_rl.utils.spaces import Box
 from torch import nn
 
 from loco_il.algorithms.common.agent_base import ALGORITHMS, get_algorithm
-from loco_il.algorithms.common.networks import GaussianPolicy
+from loco_il.algorithms.common.networks import EnsembleQ, GaussianPolicy
 from loco_il.algorithms.common.replay import TransitionBuffer
 from loco_il.algorithms.common.sac import (SACCore, actor_loss, bc_regularized_actor_loss, conservative_penalty,
                                           polyak_update, temperature_loss)
@@ -360,6 +360,39 @@ def test_single_critic_actor_step_follows_its_only_head():
     assert {k.split(".")[0] for k in agent.sac.critic.state_dict()} == {"q1"}
     with pytest.raises(ValueError, match="n_heads"):
         _agent(LSIQ, n_critics=0)
+
+
+def test_layer_norm_critic_bounds_extrapolation():
+    """critic_layer_norm: LayerNorm between each hidden Linear and its ReLU. With zero first-layer biases the
+    normalized features, and so Q, do not grow when (s, a) is scaled up; a plain critic's Q grows with it."""
+    torch.manual_seed(0)
+    plain, normed = EnsembleQ(OBS_DIM, ACT_DIM, (16, 16)), EnsembleQ(OBS_DIM, ACT_DIM, (16, 16), layer_norm=True)
+    assert [type(m) for m in normed.q1] == [nn.Linear, nn.LayerNorm, nn.ReLU] * 2 + [nn.Linear]
+    assert [type(m) for m in plain.q1] == [nn.Linear, nn.ReLU] * 2 + [nn.Linear]
+    for net in (plain, normed):
+        for head in net.children():
+            nn.init.zeros_(head[0].bias)
+    obs, act = torch.randn(32, OBS_DIM), torch.rand(32, ACT_DIM) * 2 - 1
+    with torch.no_grad():
+        q_plain, q_plain_far = plain(obs, act), plain(100 * obs, 100 * act)
+        q_normed, q_normed_far = normed(obs, act), normed(100 * obs, 100 * act)
+    torch.testing.assert_close(q_normed_far, q_normed, rtol=1e-3, atol=1e-3)
+    assert q_plain_far.abs().mean() > 20 * q_plain.abs().mean()
+
+
+@pytest.mark.parametrize("cls", [IQLearn, LSIQ, SQIL])
+def test_layer_norm_critic_trains_and_survives_save_and_load(cls, tmp_path):
+    agent = _agent(cls, critic_layer_norm=True)
+    ln_before = agent.sac.critic.q1[1].weight.clone()
+    agent.fit(_dataset())                      # 64 transitions >= initial_replay_size: one update each
+    assert agent.n_updates == 64
+    assert not torch.equal(agent.sac.critic.q1[1].weight, ln_before)   # the LayerNorm gains are trained
+    agent.save(tmp_path / "agent.pt")
+    restored = cls.load(tmp_path / "agent.pt")
+    assert any(isinstance(m, nn.LayerNorm) for m in restored.sac.critic_target.q1)
+    obs, act = torch.randn(5, OBS_DIM), torch.rand(5, ACT_DIM)
+    with torch.no_grad():
+        torch.testing.assert_close(restored.sac.critic(obs, act), agent.sac.critic(obs, act), rtol=0, atol=0)
 
 
 def test_replay_ring_buffer_keeps_newest():

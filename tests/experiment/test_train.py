@@ -293,6 +293,11 @@ def test_a_run_resumes_with_another_device_or_cuda_graph_but_not_another_objecti
     assert config_differences(ran, on_cpu) == []
     on_cpu["algo"]["params"]["n_critics"] = 1
     assert config_differences(ran, on_cpu) == ["algo.params.n_critics: 2 -> 1"]
+    # a key added since the run was checkpointed: resumes with the value that behaves as the run did
+    on_cpu["algo"]["params"].update(n_critics=2, critic_layer_norm=False)
+    assert config_differences(ran, on_cpu) == []
+    on_cpu["algo"]["params"]["critic_layer_norm"] = True
+    assert config_differences(ran, on_cpu) == ["algo.params.critic_layer_norm: False -> True"]
 
 
 def test_killed_run_resumes(env_vars, tmp_path):

@@ -19,12 +19,17 @@ LOG_STD_MIN, LOG_STD_MAX = -20.0, 2.0
 
 
 def mlp(in_dim: int, out_dim: int, hidden: Sequence[int] = (256, 256),
-        activation: type[nn.Module] = nn.ReLU, out_gain: float | None = None) -> nn.Sequential:
-    """A plain feed-forward network; `out_gain` scales the last layer's init (small for policies)."""
+        activation: type[nn.Module] = nn.ReLU, out_gain: float | None = None,
+        layer_norm: bool = False) -> nn.Sequential:
+    """A plain feed-forward network; `out_gain` scales the last layer's init (small for policies).
+
+    layer_norm=True puts an `nn.LayerNorm` between each hidden Linear layer and its activation (the critic
+    of Ball et al. 2023, "Efficient Online RL with Offline Data": it bounds how far Q extrapolates).
+    """
     layers: list[nn.Module] = []
     last = in_dim
     for width in hidden:
-        layers += [nn.Linear(last, width), activation()]
+        layers += [nn.Linear(last, width), *([nn.LayerNorm(width)] if layer_norm else []), activation()]
         last = width
     out = nn.Linear(last, out_dim)
     if out_gain is not None:
@@ -121,17 +126,17 @@ class EnsembleQ(nn.Module):
     """`n_heads` independent Q-networks evaluated in one call: a (n_heads, batch) tensor of Q_i(s, a).
 
     n_heads=2 is SAC's twin critic (Haarnoja et al. 2018b; learners take the minimum of the heads);
-    n_heads=1 a single critic (as in the LS-IQ authors' released runs). Heads are named q1, q2, ... so the
-    state dicts of twin critics saved before `n_heads` existed load unchanged.
+    n_heads=1 a single critic (as in the LS-IQ authors' released runs); layer_norm: see `mlp`. Heads are named
+    q1, q2, ... so the state dicts of twin critics saved before `n_heads` existed load unchanged.
     """
 
     def __init__(self, obs_dim: int, act_dim: int, hidden: Sequence[int] = (256, 256),
-                 activation: type[nn.Module] = nn.ReLU, n_heads: int = 2):
+                 activation: type[nn.Module] = nn.ReLU, n_heads: int = 2, layer_norm: bool = False):
         super().__init__()
         if int(n_heads) < 1:
             raise ValueError(f"EnsembleQ: n_heads must be >= 1, got {n_heads}")
         for i in range(int(n_heads)):
-            self.add_module(f"q{i + 1}", mlp(obs_dim + act_dim, 1, hidden, activation))
+            self.add_module(f"q{i + 1}", mlp(obs_dim + act_dim, 1, hidden, activation, layer_norm=layer_norm))
 
     @property
     def n_heads(self) -> int:

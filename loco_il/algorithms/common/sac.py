@@ -84,13 +84,15 @@ class SACCore:
                  critic_hidden: Sequence[int] = (256, 256), gamma: float = 0.99, tau: float = 0.005,
                  actor_lr: float = 3e-4, critic_lr: float = 3e-4, alpha_lr: float = 3e-4,
                  init_alpha: float = 1.0, learn_alpha: bool = True, target_entropy: float | None = None,
-                 critic_grad_clip: float | None = None, device: str | torch.device = "cpu", n_critics: int = 2):
+                 critic_grad_clip: float | None = None, device: str | torch.device = "cpu", n_critics: int = 2,
+                 critic_layer_norm: bool = False):
         if not getattr(policy, "squash", False):
             raise ValueError("SAC needs a tanh-squashed GaussianPolicy (squash=True)")
         self.device = torch.device(device)
         self.policy = policy
         self.gamma, self.tau = float(gamma), float(tau)
-        self.critic = EnsembleQ(obs_dim, act_dim, critic_hidden, n_heads=n_critics).to(self.device)
+        self.critic = EnsembleQ(obs_dim, act_dim, critic_hidden, n_heads=n_critics,
+                                layer_norm=critic_layer_norm).to(self.device)
         self.critic_target = copy.deepcopy(self.critic).requires_grad_(False)
         self.log_alpha = torch.tensor(math.log(init_alpha), device=self.device, requires_grad=True)
         self.learn_alpha = learn_alpha
@@ -206,6 +208,10 @@ class OffPolicyILAgent(ILAgent):
     action at the expert batch's states (`bc_regularized_actor_loss`); a policy constraint that tests whether
     anchoring the actor at the demonstrations keeps it at the expert. Needs the expert's actions.
 
+    `critic_layer_norm=True` (an ablation, our addition): LayerNorm after each hidden layer of every critic head,
+    as in Ball et al. 2023 (RLPD), where it keeps a critic trained on offline (here: expert) data from
+    extrapolating to large values on actions the data does not cover.
+
     `cuda_graph=True` (device cuda only): after three eager updates, each update is replayed from a captured
     CUDA graph (`common/cuda_graph.py`): the same computation in one launch instead of hundreds, for networks
     too small to keep a GPU busy. Needs `actor_delay=1` (the captured step always takes the actor step).
@@ -223,7 +229,8 @@ class OffPolicyILAgent(ILAgent):
                  n_critics: int = 2, gamma: float | None = None, actor_ema: float | None = None,
                  freeze_replay: bool = False, conservative_weight: float = 0.0, conservative_actions: int = 10,
                  conservative_hinge: bool = False, actor_bc_alpha: float | None = None,
-                 cuda_graph: bool = False, device: str = "cpu", seed: int | None = None):
+                 critic_layer_norm: bool = False, cuda_graph: bool = False, device: str = "cpu",
+                 seed: int | None = None):
         super().__init__(mdp_info, policy_module, device=device, seed=seed)
         self.obs_dim = int(np.prod(mdp_info.observation_space.shape))
         self.act_dim = int(np.prod(mdp_info.action_space.shape))
@@ -234,7 +241,7 @@ class OffPolicyILAgent(ILAgent):
             raise ValueError(f"gamma must lie in (0, 1), got {self.gamma}")
         self.sac = SACCore(self.policy_module, self.obs_dim, self.act_dim, critic_hidden, self.gamma, tau,
                            actor_lr, critic_lr, alpha_lr, init_alpha, learn_alpha, target_entropy,
-                           critic_grad_clip, self.device, n_critics)
+                           critic_grad_clip, self.device, n_critics, critic_layer_norm)
         self.batch_size, self.expert_batch_size = int(batch_size), int(expert_batch_size)
         self.initial_replay_size = int(initial_replay_size)
         self.random_initial_steps = int(random_initial_steps)
