@@ -241,7 +241,7 @@ class OffPolicyILAgent(ILAgent):
             raise ValueError(f"gamma must lie in (0, 1), got {self.gamma}")
         self.sac = SACCore(self.policy_module, self.obs_dim, self.act_dim, critic_hidden, self.gamma, tau,
                            actor_lr, critic_lr, alpha_lr, init_alpha, learn_alpha, target_entropy,
-                           critic_grad_clip, self.device, n_critics, critic_layer_norm)
+                           critic_grad_clip, self.device, n_critics, critic_layer_norm=critic_layer_norm)
         self.batch_size, self.expert_batch_size = int(batch_size), int(expert_batch_size)
         self.initial_replay_size = int(initial_replay_size)
         self.random_initial_steps = int(random_initial_steps)
