@@ -15,6 +15,10 @@ Note that the IL critics do inherently more work than SAC's: IQ-Learn and LS-IQ 
 the critic also on (s, a~pi(s)) and IQ-Learn on (s', a'~pi) with gradient; LSIQ-fO trains an inverse
 dynamics model every update.
 
+`--critic-layer-norm` adds each agent with `critic_layer_norm=True` (rows '... LN': a LayerNorm after each
+hidden layer of every critic head), each against the bare update with the same LayerNorm critic, and prints
+what the LayerNorm costs each agent (LN / plain update time, same process).
+
 `--device cuda` runs the networks, replay memory and updates on the GPU (timed blocks end with
 `torch.cuda.synchronize()`); `--graphed-bare` adds the bare update replayed from a CUDA graph and the agents
 with `cuda_graph=True`, each against the graphed bare update of its shape (rows '... graph').
@@ -29,7 +33,7 @@ depend on its content; use it for tasks whose dataset is not cached, e.g. `--tas
 
     python benchmarks/il_speed.py [--updates 20 --reps 5] [--offpolicy ...] [--onpolicy gail vail gaifo]
                                   [--onpolicy-fits 6 --onpolicy-reps 3] [--task Hopper.run.perfect] [--random-expert]
-                                  [--device cpu|cuda] [--compiled-bare] [--graphed-bare]
+                                  [--device cpu|cuda] [--compiled-bare] [--graphed-bare] [--critic-layer-norm]
     (an empty `--offpolicy` or `--onpolicy` skips that part)
 """
 from __future__ import annotations
@@ -64,10 +68,11 @@ def load_cfg(name: str) -> dict:
 # ---------------------------------------------------------------------------- bare SAC
 class BareSAC:
     """Minimal SAC update on preallocated replay tensors: the floor the agents are compared with.
-    `n_critics` critic heads (2: SAC's twin critic; 1: one critic), the agents' `EnsembleQ`."""
+    `n_critics` critic heads (2: SAC's twin critic; 1: one critic), the agents' `EnsembleQ`, with LayerNorm
+    after each hidden layer when `layer_norm` (as the agents' `critic_layer_norm`)."""
 
     def __init__(self, n: int, batch: int, hidden=(256, 256), gamma=0.99, tau=0.005, lr=3e-4, seed=0,
-                 n_critics: int = 2, idm: bool = False, device: str = "cpu"):
+                 n_critics: int = 2, idm: bool = False, layer_norm: bool = False, device: str = "cpu"):
         g = torch.Generator().manual_seed(seed)
         self.device = torch.device(device)
         # the replay tensors live on the update's device, as in the agents' TransitionBuffer
@@ -79,7 +84,7 @@ class BareSAC:
         self.rng = np.random.default_rng(seed)
         self.batch, self.gamma, self.tau = batch, gamma, tau
         self.pi = GaussianPolicy(OBS_DIM, ACT_DIM, hidden, squash=True).to(self.device)
-        self.q = EnsembleQ(OBS_DIM, ACT_DIM, hidden, n_heads=n_critics).to(self.device)
+        self.q = EnsembleQ(OBS_DIM, ACT_DIM, hidden, n_heads=n_critics, layer_norm=layer_norm).to(self.device)
         self.q_targ = copy.deepcopy(self.q).requires_grad_(False)
         self.log_alpha = torch.zeros((), device=self.device, requires_grad=True)
         # foreach=True as in SACCore, so that the ratio measures the agents' overheads, not the optimizer kind
@@ -138,11 +143,13 @@ def random_mdp_info() -> MDPInfo:
                    Box(-np.ones(ACT_DIM), np.ones(ACT_DIM)), gamma=0.99, horizon=1000, dt=0.008)
 
 
-def make_offpolicy_agent(name: str, n_replay: int, seed: int = 0, device: str = "cpu", cuda_graph: bool = False):
+def make_offpolicy_agent(name: str, n_replay: int, seed: int = 0, device: str = "cpu", cuda_graph: bool = False,
+                        critic_layer_norm: bool = False):
     cfg = load_cfg("lsiq" if name == "lsiqfo" else name)
     cfg["name"] = name
     cfg["params"]["replay_capacity"] = n_replay
     cfg["params"]["cuda_graph"] = cuda_graph
+    cfg["params"]["critic_layer_norm"] = critic_layer_norm
     agent = build_agent(name, random_mdp_info(), cfg, seed=seed, device=device)
     rng = np.random.default_rng(seed)
     n_exp = 10_000
@@ -192,27 +199,33 @@ def compiled_bare_sac(n_replay: int, device: str = "cpu") -> BareSAC:
     return bare
 
 
-def bare_name(n_critics: int, idm: bool = False, graphed: bool = False) -> str:
+def bare_name(n_critics: int, idm: bool = False, graphed: bool = False, layer_norm: bool = False) -> str:
     return ("bare SAC" if n_critics == 2 else f"bare SAC {n_critics}Q") + ("+IDM" if idm else "") + \
-        (" graph" if graphed else "")
+        (" LN" if layer_norm else "") + (" graph" if graphed else "")
+
+
+def agent_row_name(name: str, layer_norm: bool, graphed: bool) -> str:
+    return name + (" LN" if layer_norm else "") + (" graph" if graphed else "")
 
 
 def bench_offpolicy(names, updates: int, reps: int, with_compiled: bool = False,
-                    device: str = "cpu", with_graphed: bool = False) -> dict[str, float]:
-    """Median seconds per update of each agent and of the bare SAC update with the same number of critic heads
-    (each agent's ratio is taken against that one), all on `device`."""
+                    device: str = "cpu", with_graphed: bool = False, with_layer_norm: bool = False) -> dict[str, float]:
+    """Median seconds per update of each agent and of the bare SAC update with the same critic (number of heads,
+    LayerNorm or not; each agent's ratio is taken against that one), all on `device`."""
     n_replay = 20_000
-    agents = {name: make_offpolicy_agent(name, n_replay, device=device) for name in names}
-    if with_graphed:  # the same agents with cuda_graph=True, each against the graphed bare update of its shape
-        agents.update({f"{name} graph": make_offpolicy_agent(name, n_replay, device=device, cuda_graph=True)
-                       for name in names})
-    # the bare update each agent is compared with: same critic count, plus the IDM step where the agent has one
-    shapes = {name: (agent.sac.critic.n_heads, hasattr(agent, "idm"), agent.cuda_graph)
-              for name, agent in agents.items()}
-    wanted = {(2, False, False)} | set(shapes.values()) | {(n, False, g) for n, _, g in shapes.values()}
+    variants = [(ln, g) for ln in (False, True)[:1 + with_layer_norm] for g in (False, True)[:1 + with_graphed]]
+    agents = {agent_row_name(name, ln, g): make_offpolicy_agent(name, n_replay, device=device, cuda_graph=g,
+                                                                critic_layer_norm=ln)
+              for ln, g in variants for name in names}
+    # the bare update each agent is compared with: same critic, plus the IDM step where the agent has one
+    shapes = {row: (agent.sac.critic.n_heads, hasattr(agent, "idm"), agent.cuda_graph,
+                    any(isinstance(m, nn.LayerNorm) for m in agent.sac.critic.modules()))
+              for row, agent in agents.items()}
+    wanted = {(2, False, False, False)} | set(shapes.values()) | {(n, False, g, ln) for n, _, g, ln in shapes.values()}
+    wanted |= {(2, False, g, ln) for _, _, g, ln in shapes.values()}
     bare_kind = {False: BareSAC, True: GraphedBareSAC}
     runners = {bare_name(*shape): bare_kind[shape[2]](n_replay, 512, n_critics=shape[0], idm=shape[1],
-                                                      device=device).update
+                                                      layer_norm=shape[3], device=device).update
                for shape in sorted(wanted, reverse=True)}
     if with_compiled:
         runners["compiled"] = compiled_bare_sac(n_replay, device).update
@@ -236,15 +249,18 @@ def bench_offpolicy(names, updates: int, reps: int, with_compiled: bool = False,
           f"(bare SAC: batch 512), median of {reps} x {updates} updates, device {device}, 1 CPU thread")
     print(f"{'agent':<22}{'ms/update':>9}{'ratio':>8}  against     (goal <= 1.2x)")
     for k, v in med.items():
-        base = bare_name(*shapes.get(k, (2, False, k.endswith(" graph"))))
+        # a bare row is read against the bare twin-critic update without LayerNorm of its kind (eager or graphed)
+        base = bare_name(*shapes.get(k, (2, False, k.endswith(" graph"), False)))
         print(f"{k:<22}{1e3 * v:>9.2f}{v / med[base]:>8.2f}  {base}")
-    for k, (n, idm, graphed) in shapes.items():
+    for k, (n, idm, graphed, ln) in shapes.items():
         if idm:
-            print(f"{k} against {bare_name(n, graphed=graphed)} (SAC's networks only, without the IDM step): "
-                  f"{med[k] / med[bare_name(n, graphed=graphed)]:.2f}")
-    if with_graphed:
-        for name in names:
+            base = bare_name(n, graphed=graphed, layer_norm=ln)
+            print(f"{k} against {base} (SAC's networks only, without the IDM step): {med[k] / med[base]:.2f}")
+    for name in names:
+        if with_graphed:
             print(f"{name}: eager / graphed update time {med[name] / med[name + ' graph']:.2f}x")
+        if with_layer_norm:
+            print(f"{name}: LayerNorm / plain critic update time {med[name + ' LN'] / med[name]:.2f}x")
     return med
 
 
@@ -336,6 +352,9 @@ def main() -> None:
     parser.add_argument("--graphed-bare", action="store_true",
                         help="off-policy part, CUDA only: also time the bare SAC update replayed from a CUDA graph "
                              "and the agents with cuda_graph=True (rows '... graph')")
+    parser.add_argument("--critic-layer-norm", action="store_true",
+                        help="off-policy part: also time each agent with critic_layer_norm=True (rows '... LN') "
+                             "against the bare update with the same LayerNorm critic")
     parser.add_argument("--device", default="cpu", help="torch device of the networks and updates (cpu, cuda)")
     args = parser.parse_args()
     if torch.device(args.device).type == "cuda" and not torch.cuda.is_available():
@@ -347,7 +366,8 @@ def main() -> None:
     gpu = f", {torch.cuda.get_device_name(args.device)}" if torch.device(args.device).type == "cuda" else ""
     print(f"torch {torch.__version__}, threads {torch.get_num_threads()}, device {args.device}{gpu}")
     if args.offpolicy:
-        bench_offpolicy(args.offpolicy, args.updates, args.reps, args.compiled_bare, args.device, args.graphed_bare)
+        bench_offpolicy(args.offpolicy, args.updates, args.reps, args.compiled_bare, args.device, args.graphed_bare,
+                        args.critic_layer_norm)
     if args.onpolicy:
         from loco_il import LocoEnv
         if args.random_expert:

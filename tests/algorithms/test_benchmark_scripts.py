@@ -44,20 +44,26 @@ def test_q_gap_is_zero_or_less_at_the_critics_maximum_and_positive_away_from_it(
     assert torch.allclose(gap_at_worst, (1 + best.abs()).pow(2).sum(-1), atol=0.05)
 
 
-def test_il_speed_runs_and_compares_each_agent_with_the_bare_update_of_its_critic_count():
+def test_il_speed_runs_and_compares_each_agent_with_the_bare_update_of_its_critic():
     out = subprocess.run([sys.executable, str(BENCHMARKS / "il_speed.py"), "--updates", "1", "--reps", "1",
-                          "--offpolicy", "lsiq", "lsiqfo", "sqil", "--onpolicy", "gail", "--onpolicy-fits", "1",
-                          "--onpolicy-reps", "1", "--random-expert"],
+                          "--offpolicy", "lsiq", "lsiqfo", "sqil", "--critic-layer-norm", "--onpolicy", "gail",
+                          "--onpolicy-fits", "1", "--onpolicy-reps", "1", "--random-expert"],
                          capture_output=True, text=True, timeout=300, check=True).stdout
     offpolicy, onpolicy = out.split("## Off-policy")[1].split("## On-policy")
     off_rows = {m[0]: (float(m[1]), m[2]) for m in
-                re.findall(r"^(\S+(?: SAC(?: \dQ)?(?:\+IDM)?)?)\s+[\d.]+\s+([\d.]+)\s+(bare SAC(?: \dQ)?(?:\+IDM)?)$",
-                           offpolicy, re.M)}
-    assert {"bare SAC", "lsiq", "lsiqfo", "sqil"} <= set(off_rows), out
+                re.findall(r"^(\S+(?: SAC(?: \dQ)?(?:\+IDM)?)?(?: LN)?)\s+[\d.]+\s+([\d.]+)\s+"
+                           r"(bare SAC(?: \dQ)?(?:\+IDM)?(?: LN)?)$", offpolicy, re.M)}
+    assert {"bare SAC", "lsiq", "lsiqfo", "sqil", "lsiq LN", "lsiqfo LN", "sqil LN"} <= set(off_rows), out
     # LSIQ-fO's inverse dynamics model is one network more: its baseline trains one too, and the ratio
     # against SAC's networks alone is printed as well
     assert off_rows["lsiqfo"][1] == "bare SAC 1Q+IDM" and off_rows["lsiq"][1] == "bare SAC 1Q", out
     assert re.search(r"^lsiqfo against bare SAC 1Q \(.*\): [\d.]+$", offpolicy, re.M), out
+    # --critic-layer-norm: each LayerNorm agent against the bare update with the same LayerNorm critic,
+    # the bare LayerNorm update against the plain one, and what LayerNorm costs each agent
+    assert off_rows["lsiq LN"][1] == "bare SAC 1Q LN" and off_rows["sqil LN"][1] == "bare SAC LN", out
+    assert off_rows["lsiqfo LN"][1] == "bare SAC 1Q+IDM LN" and off_rows["bare SAC LN"][1] == "bare SAC", out
+    for name in ("lsiq", "lsiqfo", "sqil"):
+        assert re.search(rf"^{name}: LayerNorm / plain critic update time [\d.]+x$", offpolicy, re.M), out
     for name, (ratio, against) in off_rows.items():
         assert against in off_rows, out            # the bare update it is compared with was timed too
         if name == against:
