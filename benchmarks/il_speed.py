@@ -199,13 +199,14 @@ def compiled_bare_sac(n_replay: int, device: str = "cpu") -> BareSAC:
     return bare
 
 
-def bare_name(n_critics: int, idm: bool = False, graphed: bool = False, layer_norm: bool = False) -> str:
-    return ("bare SAC" if n_critics == 2 else f"bare SAC {n_critics}Q") + ("+IDM" if idm else "") + \
-        (" LN" if layer_norm else "") + (" graph" if graphed else "")
-
-
-def agent_row_name(name: str, layer_norm: bool, graphed: bool) -> str:
+def row_name(name: str, layer_norm: bool = False, graphed: bool = False) -> str:
+    """A timed row's label: `name` plus the variant suffixes (' LN' LayerNorm critic, ' graph' CUDA graph)."""
     return name + (" LN" if layer_norm else "") + (" graph" if graphed else "")
+
+
+def bare_name(n_critics: int, idm: bool = False, graphed: bool = False, layer_norm: bool = False) -> str:
+    shape = ("bare SAC" if n_critics == 2 else f"bare SAC {n_critics}Q") + ("+IDM" if idm else "")
+    return row_name(shape, layer_norm, graphed)
 
 
 def bench_offpolicy(names, updates: int, reps: int, with_compiled: bool = False,
@@ -214,8 +215,8 @@ def bench_offpolicy(names, updates: int, reps: int, with_compiled: bool = False,
     LayerNorm or not; each agent's ratio is taken against that one), all on `device`."""
     n_replay = 20_000
     variants = [(ln, g) for ln in (False, True)[:1 + with_layer_norm] for g in (False, True)[:1 + with_graphed]]
-    agents = {agent_row_name(name, ln, g): make_offpolicy_agent(name, n_replay, device=device, cuda_graph=g,
-                                                                critic_layer_norm=ln)
+    agents = {row_name(name, ln, g): make_offpolicy_agent(name, n_replay, device=device, cuda_graph=g,
+                                                          critic_layer_norm=ln)
               for ln, g in variants for name in names}
     # the bare update each agent is compared with: same critic, plus the IDM step where the agent has one
     shapes = {row: (agent.sac.critic.n_heads, hasattr(agent, "idm"), agent.cuda_graph,
