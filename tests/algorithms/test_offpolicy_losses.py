@@ -482,12 +482,10 @@ def _params_close(a: nn.Module, b: nn.Module, atol: float) -> None:
         torch.testing.assert_close(v, v2, rtol=0, atol=atol, msg=k)
 
 
-@pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA device")
-@pytest.mark.parametrize("cls", [IQLearn, LSIQ, LSIQfO, SQIL])
-def test_cuda_graph_updates_compute_what_the_eager_updates_compute(cls, tmp_path):
-    """cuda_graph=True: 3 eager updates, then the captured one replayed; same parameters as eager updates from the
-    same RNG state, also after a checkpoint (the optimizers' state is replaced on load: captured again)."""
-    eager, graphed = _agent(cls, device="cuda"), _agent(cls, device="cuda", cuda_graph=True)
+def _graphed_and_eager_agree(cls, **kw):
+    """40 updates eager and 40 with cuda_graph=True (3 eager, then the captured one replayed) from the same RNG
+    state leave the same parameters and critic loss; returns the graphed agent."""
+    eager, graphed = _agent(cls, device="cuda", **kw), _agent(cls, device="cuda", cuda_graph=True, **kw)
     rng_state = torch.get_rng_state(), torch.cuda.get_rng_state_all()
     eager.fit(_dataset(n=40))
     torch.set_rng_state(rng_state[0])
@@ -498,6 +496,15 @@ def test_cuda_graph_updates_compute_what_the_eager_updates_compute(cls, tmp_path
         _params_close(getattr(eager.sac, net), getattr(graphed.sac, net), atol=1e-5)
     _params_close(eager.policy_module, graphed.policy_module, atol=1e-5)
     torch.testing.assert_close(eager.last_info["critic_loss"], graphed.last_info["critic_loss"], rtol=1e-4, atol=1e-5)
+    return graphed
+
+
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA device")
+@pytest.mark.parametrize("cls", [IQLearn, LSIQ, LSIQfO, SQIL])
+def test_cuda_graph_updates_compute_what_the_eager_updates_compute(cls, tmp_path):
+    """cuda_graph=True: 3 eager updates, then the captured one replayed; same parameters as eager updates from the
+    same RNG state, also after a checkpoint (the optimizers' state is replaced on load: captured again)."""
+    graphed = _graphed_and_eager_agree(cls)
 
     path = tmp_path / "graphed.pt"
     graphed.save(path)
@@ -513,6 +520,20 @@ def test_cuda_graph_updates_compute_what_the_eager_updates_compute(cls, tmp_path
     assert resumed._graphed_step.graph is not None
     _params_close(graphed.sac.critic, resumed.sac.critic, atol=1e-5)
     assert not cls.load(path, device="cpu").cuda_graph      # read on the CPU: the same updates, eager
+
+
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA device")
+@pytest.mark.parametrize("cls, kw", [
+    (LSIQ, {"objective": "mixture", "n_critics": 2, "critic_layer_norm": True}),  # the README's Hopper setting
+    (LSIQ, {"critic_layer_norm": True}),
+    (IQLearn, {"critic_layer_norm": True}),
+    (LSIQfO, {"critic_layer_norm": True, "n_critics": 2}),
+    (SQIL, {"critic_layer_norm": True}),
+])
+def test_cuda_graph_matches_eager_with_the_layer_norm_and_twin_critics(cls, kw):
+    graphed = _graphed_and_eager_agree(cls, **kw)
+    norms = [m for m in graphed.sac.critic.modules() if isinstance(m, nn.LayerNorm)]
+    assert norms and all(torch.isfinite(m.weight).all() for m in norms)   # the option really built a LayerNorm critic
 
 
 @pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA device")

@@ -1,0 +1,62 @@
+#!/usr/bin/env bash
+# Whole CUDA-graphed training runs on a lent GPU machine (issue #5; results in benchmarks/RESULTS.md,
+# "CUDA on a lent GPU machine"). Run from the repository root with torch (CUDA build) and the project's
+# dependencies importable; writes its outputs to $OUT (default /tmp/gpu_graphed_runs):
+#   cuda_tests.txt          the CUDA tests (pytest -k cuda)
+#   train_speed_<algo>.txt  one graphed run alone per algorithm, benchmarks/train_speed.py --seconds $SPEED_S
+#   lsiq_runs.tar.gz        log.csv / train.log / config.yaml of graphed LS-IQ runs (seeds $LONG_SEEDS) trained side
+#                           by side for $LONG_S seconds with the README's Hopper setting (mixture, twin critic,
+#                           LayerNorm), the same seeds and evaluation as the CPU runs in benchmarks/il_results/long_runs
+# ONLY_LONG=1 skips the tests and the speed runs.
+#
+#     OUT=/tmp/out SPEED_S=20 LONG_S=240 LONG_SEEDS="1 2" bash benchmarks/gpu_graphed_runs.sh
+#     OUT=/tmp/out ONLY_LONG=1 LONG_S=270 LONG_SEEDS="3 4 5 6" bash benchmarks/gpu_graphed_runs.sh
+set -u
+OUT=${OUT:-/tmp/gpu_graphed_runs}
+SPEED_S=${SPEED_S:-20}
+LONG_S=${LONG_S:-270}
+LONG_SEEDS=${LONG_SEEDS:-1 2}
+ONLY_LONG=${ONLY_LONG:-0}
+RUNS=${RUNS:-/tmp/gpu_graphed_runs_dirs}
+PY=${PYTHON:-python3}
+export PYTHONUNBUFFERED=1 MUJOCO_GL=${MUJOCO_GL:-disable}
+mkdir -p "$OUT" "$RUNS"
+stamp() { echo "[gpu_graphed_runs $(date +%T)] $*"; }
+
+stamp "start; $(nvidia-smi --query-gpu=name,driver_version --format=csv,noheader 2>/dev/null)"
+if [[ $ONLY_LONG != 1 ]]; then
+    # The long runs' dataset (100 expert episodes), generated once while the tests run.
+    $PY -c "from loco_il import LocoEnv; LocoEnv.make('Hopper.run.perfect').create_dataset(verbose=False)" \
+        > "$OUT/dataset.txt" 2>&1 &
+    datagen=$!
+    $PY -m pytest -q -p no:cacheprovider tests/algorithms/test_offpolicy_losses.py \
+        tests/algorithms/test_onpolicy_losses.py tests/experiment/test_train.py -k cuda 2>&1 | tail -n 25 > "$OUT/cuda_tests.txt"
+    stamp "tests: $(tail -n 1 "$OUT/cuda_tests.txt")"
+    wait $datagen; stamp "dataset: exit $?"
+
+    small="dataset.n_episodes=12 algo.params.initial_replay_size=1000 algo.params.cuda_graph=true"
+    speed() {  # speed NAME ALGO [OVERRIDES...]: one graphed run alone on the GPU
+        local name=$1 algo=$2; shift 2
+        $PY benchmarks/train_speed.py --algo "$algo" --seconds "$SPEED_S" --groups cuda:1 -- $small "$@" \
+            > "$OUT/train_speed_$name.txt" 2>&1
+        stamp "train_speed $name: $(grep -E '^cudax1' "$OUT/train_speed_$name.txt")"
+    }
+    speed lsiq lsiq
+    speed iqlearn iqlearn
+    speed sqil sqil
+    speed lsiqfo lsiq algo.name=lsiqfo
+fi
+
+# LS-IQ with the README's Hopper setting, graphed, the seeds side by side
+pids=()
+for seed in $LONG_SEEDS; do
+    timeout -s TERM "$LONG_S" $PY train.py task=Hopper.run.perfect algo=lsiq seed="$seed" n_steps=1500000 \
+        eval.every=5000 checkpoint_every=25000 results_dir="$RUNS" logger=csv device=cuda \
+        algo.params.cuda_graph=true algo.params.objective=mixture algo.params.n_critics=2 \
+        algo.params.critic_layer_norm=true name=lsiq_mixture_2critics_ln_graph > "$RUNS/seed$seed.out" 2>&1 &
+    pids+=($!)
+done
+wait "${pids[@]}"
+stamp "long runs done"
+(cd "$RUNS" && tar czf "$OUT/lsiq_runs.tar.gz" --exclude='*.pt' --exclude=wandb .)
+stamp "end"
