@@ -24,16 +24,19 @@ mkdir -p "$OUT" "$RUNS"
 stamp() { echo "[gpu_graphed_runs $(date +%T)] $*"; }
 
 stamp "start; $(nvidia-smi --query-gpu=name,driver_version --format=csv,noheader 2>/dev/null)"
+# The long runs' dataset (100 expert episodes), generated once here (while the tests run) rather than by each of
+# the runs started side by side below.
+$PY -c "from loco_il import LocoEnv; LocoEnv.make('Hopper.run.perfect').create_dataset(verbose=False)" \
+    > "$OUT/dataset.txt" 2>&1 &
+datagen=$!
 if [[ $ONLY_LONG != 1 ]]; then
-    # The long runs' dataset (100 expert episodes), generated once while the tests run.
-    $PY -c "from loco_il import LocoEnv; LocoEnv.make('Hopper.run.perfect').create_dataset(verbose=False)" \
-        > "$OUT/dataset.txt" 2>&1 &
-    datagen=$!
     $PY -m pytest -q -p no:cacheprovider tests/algorithms/test_offpolicy_losses.py \
         tests/algorithms/test_onpolicy_losses.py tests/experiment/test_train.py -k cuda 2>&1 | tail -n 25 > "$OUT/cuda_tests.txt"
     stamp "tests: $(tail -n 1 "$OUT/cuda_tests.txt")"
-    wait $datagen; stamp "dataset: exit $?"
+fi
+wait $datagen; stamp "dataset: exit $?"
 
+if [[ $ONLY_LONG != 1 ]]; then   # after the dataset: each speed run has the machine to itself
     small="dataset.n_episodes=12 algo.params.initial_replay_size=1000 algo.params.cuda_graph=true"
     speed() {  # speed NAME ALGO [OVERRIDES...]: one graphed run alone on the GPU
         local name=$1 algo=$2; shift 2
@@ -47,7 +50,7 @@ if [[ $ONLY_LONG != 1 ]]; then
     speed lsiqfo lsiq algo.name=lsiqfo
 fi
 
-# LS-IQ with the README's Hopper setting, graphed, the seeds side by side
+# LS-IQ with the README's Hopper setting, graphed, the seeds side by side (a run dir already in $RUNS resumes)
 pids=()
 for seed in $LONG_SEEDS; do
     timeout -s TERM "$LONG_S" $PY train.py task=Hopper.run.perfect algo=lsiq seed="$seed" n_steps=1500000 \
