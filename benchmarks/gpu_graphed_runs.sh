@@ -5,18 +5,26 @@
 #   cuda_tests.txt          the CUDA tests (pytest -k cuda)
 #   train_speed_<algo>.txt  one graphed run alone per algorithm, benchmarks/train_speed.py --seconds $SPEED_S
 #   lsiq_runs.tar.gz        log.csv / train.log / config.yaml of graphed LS-IQ runs (seeds $LONG_SEEDS) trained side
-#                           by side for $LONG_S seconds with the README's Hopper setting (mixture, twin critic,
-#                           LayerNorm), the same seeds and evaluation as the CPU runs in benchmarks/il_results/long_runs
-# ONLY_LONG=1 skips the tests and the speed runs.
+#                           by side for $LONG_S seconds, by default with the README's Hopper setting (mixture, twin
+#                           critic, LayerNorm), the same seeds and evaluation as the CPU runs in benchmarks/il_results/long_runs
+# ONLY_LONG=1 skips the tests and the speed runs. LONG_NAME and LONG_OVERRIDES give the long runs another LS-IQ
+# setting (an ablation); END_BY=<s> stops them that many seconds after the script started, whatever LONG_S says,
+# so that one device call can spend all its time training and still return the logs.
 #
 #     OUT=/tmp/out SPEED_S=20 LONG_S=240 LONG_SEEDS="1 2" bash benchmarks/gpu_graphed_runs.sh
 #     OUT=/tmp/out ONLY_LONG=1 LONG_S=270 LONG_SEEDS="3 4 5 6" bash benchmarks/gpu_graphed_runs.sh
+#     OUT=/tmp/out ONLY_LONG=1 END_BY=540 LONG_SEEDS=2 LONG_NAME=lsiq_mixture_1critic_ln_graph \
+#         LONG_OVERRIDES="algo.params.objective=mixture algo.params.n_critics=1 algo.params.critic_layer_norm=true" \
+#         bash benchmarks/gpu_graphed_runs.sh
 set -u
 OUT=${OUT:-/tmp/gpu_graphed_runs}
 SPEED_S=${SPEED_S:-20}
 LONG_S=${LONG_S:-270}
 LONG_SEEDS=${LONG_SEEDS:-1 2}
 ONLY_LONG=${ONLY_LONG:-0}
+LONG_NAME=${LONG_NAME:-lsiq_mixture_2critics_ln_graph}
+LONG_OVERRIDES=${LONG_OVERRIDES:-algo.params.objective=mixture algo.params.n_critics=2 algo.params.critic_layer_norm=true}
+END_BY=${END_BY:-}
 RUNS=${RUNS:-/tmp/gpu_graphed_runs_dirs}
 PY=${PYTHON:-python3}
 export PYTHONUNBUFFERED=1 MUJOCO_GL=${MUJOCO_GL:-disable}
@@ -50,13 +58,14 @@ if [[ $ONLY_LONG != 1 ]]; then   # after the dataset: each speed run has the mac
     speed lsiqfo lsiq algo.name=lsiqfo
 fi
 
-# LS-IQ with the README's Hopper setting, graphed, the seeds side by side (a run dir already in $RUNS resumes)
+if [[ -n $END_BY ]]; then LONG_S=$(( END_BY - SECONDS )); fi   # replaces LONG_S (before, it only lowered LONG_S: a first call stopped at 270 s)
+stamp "long runs: $LONG_NAME, seeds $LONG_SEEDS, ${LONG_S} s"
+# LS-IQ graphed (default: the README's Hopper setting), the seeds side by side (a run dir already in $RUNS resumes)
 pids=()
 for seed in $LONG_SEEDS; do
     timeout -s TERM "$LONG_S" $PY train.py task=Hopper.run.perfect algo=lsiq seed="$seed" n_steps=1500000 \
         eval.every=5000 checkpoint_every=25000 results_dir="$RUNS" logger=csv device=cuda \
-        algo.params.cuda_graph=true algo.params.objective=mixture algo.params.n_critics=2 \
-        algo.params.critic_layer_norm=true name=lsiq_mixture_2critics_ln_graph > "$RUNS/seed$seed.out" 2>&1 &
+        algo.params.cuda_graph=true $LONG_OVERRIDES name="$LONG_NAME" > "$RUNS/seed$seed.out" 2>&1 &
     pids+=($!)
 done
 wait "${pids[@]}"
