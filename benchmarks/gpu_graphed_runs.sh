@@ -58,7 +58,7 @@ if [[ $ONLY_LONG != 1 ]]; then   # after the dataset: each speed run has the mac
     speed lsiqfo lsiq algo.name=lsiqfo
 fi
 
-if [[ -n $END_BY ]]; then LONG_S=$(( END_BY - SECONDS )); fi   # replaces LONG_S (before, it only lowered LONG_S: a first call stopped at 270 s)
+if [[ -n $END_BY ]]; then LONG_S=$(( END_BY - SECONDS )); fi   # END_BY replaces LONG_S
 stamp "long runs: $LONG_NAME, seeds $LONG_SEEDS, ${LONG_S} s"
 # LS-IQ graphed (default: the README's Hopper setting), the seeds side by side (a run dir already in $RUNS resumes)
 pids=()
