@@ -4,8 +4,10 @@ The leaderboard only counts finished runs (those with an `eval.json`). Runs at t
 many sittings on a small machine (they resume from `checkpoint.pt`), so this prints one row per run dir
 below the folder, finished or not: its budget, the last evaluation logged in `log.csv` (step, return,
 normalized score), the training speed of the last interval and, for unfinished runs, the wall time the
-rest of the budget needs at that speed. It reads only `config.yaml` and `log.csv` (no checkpoint), so it
-is instant and safe to run while the runs are training. `--curves` adds each run's learning curve, the
+rest of the budget needs at that speed, and the step a re-run resumes from (its last checkpoint, from the
+small `checkpoint.json` beside it: after a kill, evaluations logged past it are cut from the log and run
+again). It reads only `config.yaml`, `log.csv` and `checkpoint.json`, so it is instant and safe to run while
+the runs are training. `--curves` adds each run's learning curve, the
 normalized score at every evaluation (`25k:0.33 50k:0.40 ...`), since run dirs are often not kept as long as
 the numbers are needed. `--stability 0.9` adds, per run, whether it stays at the expert once it got there:
 the first evaluation scoring >= 0.9 and, over the evaluations after it, the share that also do, their
@@ -19,10 +21,11 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from loco_il.experiment.checkpoint import read_checkpoint_summary
 from loco_il.experiment.logging import read_csv
 
 HEADER = ("task", "algorithm", "seed", "last eval step", "budget", "done %", "return", "normalized",
-          "steps/s", "rest (h)", "state")
+          "steps/s", "rest (h)", "resumes from", "state")
 
 
 def run_progress(run_dir: str | Path) -> dict[str, Any] | None:
@@ -40,13 +43,15 @@ def run_progress(run_dir: str | Path) -> dict[str, Any] | None:
     speed = last.get("steps_per_s")
     finished = (run_dir / "eval.json").is_file()
     rest_h = None if finished or not speed else max(budget - step, 0) / speed / 3600.0
+    ckpt = read_checkpoint_summary(run_dir)
     curve = [(int(r["step"]), r.get("normalized_score")) for r in rows if r.get("step") is not None]
     curve_ema = [(int(r["step"]), r.get("normalized_score_ema")) for r in rows if r.get("step") is not None]
     return {"run_dir": str(run_dir), "task": cfg.get("task_id", "?"), "algorithm": cfg.get("name", "?"),
             "seed": cfg.get("seed"), "step": step, "budget": budget,
             "done": step / budget if budget else None, "return": last.get("eval_return_mean"),
             "normalized": last.get("normalized_score"), "steps_per_s": speed, "rest_hours": rest_h,
-            "state": "finished" if finished else ("no evaluation yet" if not rows else "in progress"),
+            "resume_step": None if finished or ckpt is None else ckpt["step"],
+            "state": "finished" if finished else ("no evaluation yet" if not rows else "unfinished"),
             "curve": curve, "curve_ema": curve_ema if any(x is not None for _, x in curve_ema) else None}
 
 
@@ -72,7 +77,7 @@ def to_markdown(rows: list[dict[str, Any]]) -> str:
         cells = [r["task"], str(r["algorithm"]), str(r["seed"]), str(r["step"]), str(r["budget"]),
                  _cell(None if r["done"] is None else 100 * r["done"], ".1f"), _cell(r["return"], ".1f"),
                  _cell(r["normalized"], ".3f"), _cell(r["steps_per_s"], ".1f"), _cell(r["rest_hours"], ".1f"),
-                 r["state"]]
+                 _cell(r["resume_step"], "d"), r["state"]]
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
@@ -134,8 +139,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"no train.py run dirs (folders with config.yaml) below {args.root}", file=sys.stderr)
         return 1
     print(to_markdown(rows))
-    print("\n'rest (h)': the rest of the budget at the last interval's speed; the checkpoint may be up to one "
-          "evaluation interval ahead of 'last eval step'.")
+    print("\n'rest (h)': the rest of the budget at the last interval's speed. 'resumes from': the step of the "
+          "run's last checkpoint, where re-running its command continues (evaluations logged after it are run "
+          "again); n/a for finished runs and runs without checkpoint.json.")
     if args.curves:
         print("\nnormalized score at each evaluation:")
         for row in rows:

@@ -13,6 +13,11 @@ the previous checkpoint intact) holds::
      "wall_time": seconds trained so far, "wandb_id": ..., "config": the run's resolved config,
      "finished": bool}
 
+Beside it, `<run_dir>/checkpoint.json` names the step it holds (`{"step", "env_steps", "wall_time",
+"finished", "saved_at"}`), so tools such as `loco_il.evaluation.progress` can say where a stopped run resumes
+without loading a file of up to hundreds of MB. It is written right after the checkpoint, so a kill between
+the two leaves it naming the previous checkpoint, never one that does not exist.
+
 Checkpoints are taken at chunk boundaries (after a whole `Core.learn` call), where mushroom-rl's
 Core holds no state of its own: it resets the environment at the start of every `learn` call.
 A resumed run therefore repeats the interrupted chunk exactly as the killed run would have,
@@ -20,6 +25,8 @@ and ends with the same total number of steps as an uninterrupted run.
 """
 from __future__ import annotations
 
+import datetime
+import json
 import os
 import random
 from pathlib import Path
@@ -28,10 +35,11 @@ from typing import Any, Mapping
 import numpy as np
 import torch
 
-from loco_il.utils.atomic import atomic_torch_save
+from loco_il.utils.atomic import atomic_open, atomic_torch_save
 
 FORMAT = "loco_il.run_checkpoint/v1"
 CHECKPOINT_NAME = "checkpoint.pt"
+CHECKPOINT_SUMMARY_NAME = "checkpoint.json"
 
 #: keys of the run config (dotted where nested) that may change between a run and its resumption
 RESUMABLE_KEYS = frozenset({"resume", "stop_after_steps", "logger", "eval", "n_steps", "checkpoint_every",
@@ -106,6 +114,21 @@ def save_checkpoint(path: str | os.PathLike, *, agent: Any, env: Any, counters: 
                        "counters": dict(counters), "rng": global_rng_state(), "env_rng": env_rng_state(env),
                        "wall_time": float(wall_time), "config": dict(config), "wandb_id": wandb_id,
                        "finished": bool(finished), "extra": dict(extra or {})}, path)
+    summary = {"step": int(counters.get("step", 0)), "env_steps": int(counters.get("env_steps", 0)),
+               "wall_time": float(wall_time), "finished": bool(finished),
+               "saved_at": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
+    with atomic_open(Path(path).with_name(CHECKPOINT_SUMMARY_NAME), "w") as fh:
+        json.dump(summary, fh)
+
+
+def read_checkpoint_summary(run_dir: str | os.PathLike) -> dict[str, Any] | None:
+    """`<run_dir>/checkpoint.json` (see the module doc), or None when absent or unreadable (runs
+    checkpointed before it existed have only `checkpoint.pt`)."""
+    try:
+        summary = json.loads((Path(run_dir) / CHECKPOINT_SUMMARY_NAME).read_text())
+    except (OSError, ValueError):
+        return None
+    return summary if isinstance(summary, dict) and isinstance(summary.get("step"), int) else None
 
 
 def load_checkpoint(path: str | os.PathLike) -> dict[str, Any]:
@@ -144,5 +167,6 @@ def config_differences(old: Mapping[str, Any], new: Mapping[str, Any], prefix: s
     return diffs
 
 
-__all__ = ["CHECKPOINT_NAME", "CheckpointError", "save_checkpoint", "load_checkpoint", "restore",
+__all__ = ["CHECKPOINT_NAME", "CHECKPOINT_SUMMARY_NAME", "CheckpointError", "save_checkpoint",
+           "read_checkpoint_summary", "load_checkpoint", "restore",
            "config_differences", "RESUMABLE_KEYS", "ADDED_KEYS"]

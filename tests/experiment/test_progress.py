@@ -37,7 +37,7 @@ def test_progress_of_finished_unfinished_and_fresh_runs(tmp_path, capsys):
     rows = {r["algorithm"]: r for r in progress.collect_progress(tmp_path)}
     assert set(rows) == {"lsiq", "gail", "sqil"}           # Hydra's unresolved .hydra/config.yaml is not a run
     lsiq = rows["lsiq"]
-    assert (lsiq["step"], lsiq["return"], lsiq["normalized"], lsiq["state"]) == (100_000, 1200.0, 0.37, "in progress")
+    assert (lsiq["step"], lsiq["return"], lsiq["normalized"], lsiq["state"]) == (100_000, 1200.0, 0.37, "unfinished")
     assert abs(lsiq["done"] - 100_000 / 1_500_000) < 1e-12
     assert abs(lsiq["rest_hours"] - 1_400_000 / 36.0 / 3600.0) < 1e-9   # the last interval's speed
     assert rows["gail"]["state"] == "finished" and rows["gail"]["rest_hours"] is None
@@ -45,7 +45,19 @@ def test_progress_of_finished_unfinished_and_fresh_runs(tmp_path, capsys):
 
     assert progress.main([str(tmp_path)]) == 0
     out = capsys.readouterr().out
-    assert "| Hopper.run.perfect | lsiq | 0 | 100000 | 1500000 | 6.7 | 1200.0 | 0.370 | 36.0 | 10.8 | in progress |" in out
+    assert "| Hopper.run.perfect | lsiq | 0 | 100000 | 1500000 | 6.7 | 1200.0 | 0.370 | 36.0 | 10.8 | n/a | unfinished |" in out
+
+
+def test_progress_names_the_step_a_killed_run_resumes_from(tmp_path, capsys):
+    """A run killed 25k after its last checkpoint: the table says it resumes at the checkpoint, not at the last
+    evaluation; an unreadable checkpoint.json reads as unknown instead of failing the table."""
+    run = make_run(tmp_path, "lsiq", 1_500_000, [(225_000, 25.0, 5000.0, 0.79), (245_000, 25.0, 6000.0, 1.0)])
+    (run / "checkpoint.json").write_text(json.dumps({"step": 225_000, "env_steps": 225_000, "finished": False}))
+    assert progress.run_progress(run)["resume_step"] == 225_000
+    assert progress.main([str(tmp_path)]) == 0
+    assert "| 245000 | 1500000 | 16.3 | 6000.0 | 1.000 | 25.0 | 13.9 | 225000 | unfinished |" in capsys.readouterr().out
+    (run / "checkpoint.json").write_text('{"step": 2250')   # e.g. a copy cut short
+    assert progress.run_progress(run)["resume_step"] is None
 
 
 def test_progress_cli_errors(tmp_path, capsys):

@@ -361,9 +361,15 @@ def test_sigterm_stops_with_a_checkpoint_and_resumes(env_vars, tmp_path):
     # every evaluation up to the stop is logged, none after it
     assert [int(r["step"]) for r in csv_rows(log)] == list(range(500, at + 1, 500))
     assert not (run_dir(results) / "eval.json").exists()
+    # the small summary beside the checkpoint names its step, and the progress table shows where it resumes
+    from loco_il.evaluation.progress import run_progress
+    assert run_progress(run_dir(results))["resume_step"] == at
     resumed = train(env_vars, results, *args)
     assert f"resuming {run_dir(results)} at step {at}/20000" in resumed.stdout
     assert json.loads((run_dir(results) / "eval.json").read_text())["steps"] == 20000
+    summary = json.loads((run_dir(results) / "checkpoint.json").read_text())
+    assert (summary["step"], summary["finished"]) == (20000, True)
+    assert run_progress(run_dir(results))["resume_step"] is None   # finished: nothing to resume
 
 
 def test_sigterm_stops_an_online_run_at_its_next_fit(env_vars, tmp_path):
