@@ -36,7 +36,7 @@ from loco_il.experiment.checkpoint import (CHECKPOINT_NAME, CheckpointError, con
 from loco_il.experiment.logging import RunLogger, Stopwatch
 from loco_il.utils.signals import stop_requests
 
-RUN_FILES = ("checkpoint.pt", "final_agent.pt", "eval.json", "log.csv", "log.jsonl")
+RUN_FILES = ("checkpoint.pt", "checkpoint.json", "final_agent.pt", "eval.json", "log.csv", "log.jsonl")
 #: exit status of `train.py` when `stop_after_steps` stopped a run early (as if it had been killed)
 STOPPED_EXIT_CODE = 3
 #: exit status of `train.py` when SIGINT/SIGTERM stopped a run (after writing a checkpoint)

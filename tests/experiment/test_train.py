@@ -392,7 +392,7 @@ def test_sigterm_stops_an_online_run_at_its_next_fit(env_vars, tmp_path):
 
 def test_resume_false_clears_the_run_dir(tmp_path):
     from loco_il.experiment.runner import Runner
-    for name in ("checkpoint.pt", "log.csv", "log.jsonl", "eval.json", "final_agent.pt"):
+    for name in ("checkpoint.pt", "checkpoint.json", "log.csv", "log.jsonl", "eval.json", "final_agent.pt"):
         (tmp_path / name).write_text("old")
     cfg = {"task_id": TASK, "algo": {"name": "bc"}, "resume": False}
     assert Runner(cfg, tmp_path)._prepare_dir() is None
