@@ -32,9 +32,13 @@ import numpy as np
 # ----------------------------------------------------------------------------- rollouts
 def evaluate_policy(env: Any, policy: Callable[[np.ndarray], np.ndarray], episodes: int, seed: int = 1000,
                     collect_obs: bool = False) -> dict[str, Any]:
-    """Run `episodes` episodes of `policy` (obs -> action) in `env`; returns, lengths (and visited obs)."""
+    """Run `episodes` episodes of `policy` (obs -> action) in `env`; returns, lengths (and visited obs).
+
+    `terminated` counts the episodes that ended in a terminal state before the horizon (on the locomotion
+    tasks, a fall), so a low mean can be told apart as a few falls or a worse gait throughout."""
     from loco_il.datasets.providers.expert import episode_seeds
     returns, lengths, observations = [], [], []
+    terminated = 0
     horizon = int(env.info.horizon)
     for s in episode_seeds(seed, episodes):
         env.seed(int(s))
@@ -46,13 +50,14 @@ def evaluate_policy(env: Any, policy: Callable[[np.ndarray], np.ndarray], episod
             obs, reward, absorbing, _ = env.step(np.asarray(policy(obs), dtype=np.float64))
             total += float(reward)
             if absorbing:
+                terminated += 1
                 break
         returns.append(total)
         lengths.append(t)
     outcomes = {(round(r, 9), n) for r, n in zip(returns, lengths)}
     out = {"returns": returns, "lengths": lengths, "episodes": int(episodes), "eval_seed": int(seed),
            "return_mean": float(np.mean(returns)), "return_std": float(np.std(returns)),
-           "length_mean": float(np.mean(lengths)), "distinct_episodes": len(outcomes)}
+           "length_mean": float(np.mean(lengths)), "terminated": terminated, "distinct_episodes": len(outcomes)}
     if collect_obs:
         out["obs"] = np.asarray(observations)
     return out

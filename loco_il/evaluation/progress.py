@@ -11,7 +11,9 @@ the runs are training. `--curves` adds each run's learning curve, the
 normalized score at every evaluation (`25k:0.33 50k:0.40 ...`), since run dirs are often not kept as long as
 the numbers are needed. `--stability 0.9` adds, per run, whether it stays at the expert once it got there:
 the first evaluation scoring >= 0.9 and, over the evaluations after it, the share that also do, their
-minimum and their mean. Runs trained with `algo.params.actor_ema` get a second line for each, the moving
+minimum and their mean, and, for logs that record `eval_terminated`, how many of the evaluations after it
+that score below the threshold had an episode end in a terminal state (a fall) and how many episodes did.
+Runs trained with `algo.params.actor_ema` get a second line for each, the moving
 average of the actor (`normalized_score_ema`), marked "actor average".
 """
 from __future__ import annotations
@@ -46,13 +48,16 @@ def run_progress(run_dir: str | Path) -> dict[str, Any] | None:
     ckpt = read_checkpoint_summary(run_dir)
     curve = [(int(r["step"]), r.get("normalized_score")) for r in rows if r.get("step") is not None]
     curve_ema = [(int(r["step"]), r.get("normalized_score_ema")) for r in rows if r.get("step") is not None]
+    falls = {int(r["step"]): (int(r["eval_terminated"]), int(r.get("eval_episodes") or 0)) for r in rows
+             if r.get("step") is not None and r.get("eval_terminated") is not None}
     return {"run_dir": str(run_dir), "task": cfg.get("task_id", "?"), "algorithm": cfg.get("name", "?"),
             "seed": cfg.get("seed"), "step": step, "budget": budget,
             "done": step / budget if budget else None, "return": last.get("eval_return_mean"),
             "normalized": last.get("normalized_score"), "steps_per_s": speed, "rest_hours": rest_h,
             "resume_step": None if finished or ckpt is None else ckpt["step"],
             "state": "finished" if finished else ("no evaluation yet" if not rows else "unfinished"),
-            "curve": curve, "curve_ema": curve_ema if any(x is not None for _, x in curve_ema) else None}
+            "curve": curve, "curve_ema": curve_ema if any(x is not None for _, x in curve_ema) else None,
+            "terminated": falls}
 
 
 def collect_progress(root: str | Path) -> list[dict[str, Any]]:
@@ -93,29 +98,46 @@ def format_curve(row: dict[str, Any], key: str = "curve") -> str:
     return f"{_head(row, key)}: {points or 'no evaluation yet'}"
 
 
-def stability(curve: list[tuple[int, float | None]], threshold: float) -> dict[str, Any]:
+def stability(curve: list[tuple[int, float | None]], threshold: float,
+              terminated: dict[int, tuple[int, int]] | None = None) -> dict[str, Any]:
     """Does a run stay at the expert once it reached it? `reached`: the first step scoring >= threshold (None if
     never); over the evaluations after it (`n_after`): how many also score >= threshold (`n_held`) and their
     share, their min and mean.
+    `terminated` ({step: (episodes that ended in a terminal state, episodes)}, from the log) adds, over the
+    evaluations after `reached` that score below threshold (`n_dips`) and have that record (`n_dips_logged`):
+    how many had at least one such episode (`n_dips_with_fall`), and those episodes against all of theirs.
     Evaluations without a score are left out."""
     scored = [(step, score) for step, score in curve if score is not None]
     first = next((i for i, (_, score) in enumerate(scored) if score >= threshold), None)
-    after = [] if first is None else [score for _, score in scored[first + 1:]]
-    held = sum(x >= threshold for x in after)
+    after = [] if first is None else scored[first + 1:]
+    scores = [score for _, score in after]
+    held = sum(x >= threshold for x in scores)
+    dips = [step for step, score in after if score < threshold]
+    logged = [(terminated or {})[step] for step in dips if step in (terminated or {})]
     return {"reached": None if first is None else scored[first][0], "n_after": len(after), "n_held": held,
             "share_after": held / len(after) if after else None,
-            "min_after": min(after) if after else None,
-            "mean_after": sum(after) / len(after) if after else None}
+            "min_after": min(scores) if scores else None,
+            "mean_after": sum(scores) / len(scores) if scores else None,
+            "n_dips": len(dips), "n_dips_logged": len(logged), "n_dips_with_fall": sum(n > 0 for n, _ in logged),
+            "dip_episodes_fell": sum(n for n, _ in logged), "dip_episodes": sum(m for _, m in logged)}
 
 
 def format_stability(row: dict[str, Any], threshold: float, key: str = "curve") -> str:
-    st = stability(row[key], threshold)
+    # the actor average is evaluated on other episodes, whose terminal states the log does not count
+    st = stability(row[key], threshold, row.get("terminated") if key == "curve" else None)
     head = _head(row, key) + ":"
     if st["reached"] is None:
         return f"{head} never >= {threshold:g}"
-    return (f"{head} >= {threshold:g} first at {st['reached'] / 1000:g}k; after it {st['n_after']} evaluations, "
+    line = (f"{head} >= {threshold:g} first at {st['reached'] / 1000:g}k; after it {st['n_after']} evaluations, "
             f"{_cell(None if st['share_after'] is None else 100 * st['share_after'], '.0f')} % >= {threshold:g}, "
-            f"min {_cell(st['min_after'], '.2f')}, mean {_cell(st['mean_after'], '.2f')}")
+            f"min {_cell(st['min_after'], '.3f')}, mean {_cell(st['mean_after'], '.2f')}")
+    if st["n_dips_logged"]:
+        unlogged = st["n_dips"] - st["n_dips_logged"]
+        line += (f"; of the {st['n_dips_logged']} below it" + (f" with a logged count ({unlogged} without)"
+                                                             if unlogged else "")
+                 + f", {st['n_dips_with_fall']} had an episode end in a fall "
+                   f"({st['dip_episodes_fell']} of {st['dip_episodes']} episodes)")
+    return line
 
 
 def _curve_keys(row: dict[str, Any]) -> tuple[str, ...]:

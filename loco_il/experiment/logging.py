@@ -6,6 +6,7 @@ Every row is one evaluation point::
      "env_steps": 20000, "updates": 20000, "episodes": 31, "wall_time": 84.2, "steps_per_s": 240.1,
      "train_return": 812.0,    # mean return of the training episodes finished since the last row (or null)
      "eval_return_mean": 1000.0, "eval_return_std": 0.0, "eval_episodes": 10,
+     "eval_terminated": 0,     # of them, how many ended in a terminal state (a fall) before the horizon
      "normalized_score": 0.98, # null when the task has no expert/random baseline
      ...}                      # plus the agent's last fit diagnostics (losses), prefixed "fit/"
 
@@ -32,7 +33,9 @@ from typing import Any, Mapping
 from loco_il.utils.atomic import atomic_open
 
 CSV_COLUMNS = ("step", "env_steps", "updates", "episodes", "wall_time", "steps_per_s", "train_return",
-               "eval_return_mean", "eval_return_std", "eval_episodes", "normalized_score",
+               "eval_return_mean", "eval_return_std", "eval_episodes",
+               "eval_terminated",   # evaluation episodes that ended in a terminal state (a fall) before the horizon
+               "normalized_score",
                "normalized_score_ema")   # the actor's moving average (agents with actor_ema; else empty)
 
 

@@ -490,7 +490,8 @@ class Runner:
                "episodes": counters["episodes"], "wall_time": round(wall, 3), "steps_per_s": round(sps, 2),
                "train_return": float(np.mean(returns)) if returns else None,
                "eval_return_mean": res["return_mean"], "eval_return_std": res["return_std"],
-               "eval_episodes": res["episodes"], "eval_length_mean": res["length_mean"],
+               "eval_episodes": res["episodes"], "eval_terminated": res["terminated"],
+               "eval_length_mean": res["length_mean"],
                "eval_distinct_episodes": res["distinct_episodes"], "normalized_score": score}
         if ema is not None:   # the actor's moving average (algo.params.actor_ema), same episodes
             row.update({"eval_ema_return_mean": ema["return_mean"], "eval_ema_length_mean": ema["length_mean"],

@@ -11,9 +11,10 @@ from loco_il.evaluation import progress
 from loco_il.experiment.logging import CSV_COLUMNS
 
 
-def make_run(root: Path, algo: str, budget: int, rows: list[tuple[int, float, float, float]],
+def make_run(root: Path, algo: str, budget: int, rows: list[tuple],
              finished: bool = False) -> Path:
-    """A run dir as train.py leaves it; rows = (step, steps/s, eval return, normalized score)."""
+    """A run dir as train.py leaves it; rows = (step, steps/s, eval return, normalized score[, episodes that
+    ended in a terminal state, of 5]); a row without the fifth entry leaves the column empty (older logs)."""
     run = root / "Hopper.run.perfect" / algo / "seed0"
     (run / ".hydra").mkdir(parents=True)
     cfg = {"task_id": "Hopper.run.perfect", "name": algo, "seed": 0, "n_steps": budget}
@@ -22,9 +23,9 @@ def make_run(root: Path, algo: str, budget: int, rows: list[tuple[int, float, fl
     with open(run / "log.csv", "w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=CSV_COLUMNS, extrasaction="ignore")
         w.writeheader()
-        for step, sps, ret, norm in rows:
+        for step, sps, ret, norm, *fell in rows:
             w.writerow({"step": step, "env_steps": step, "steps_per_s": sps, "eval_return_mean": ret,
-                        "normalized_score": norm})
+                        "normalized_score": norm, "eval_episodes": 5, "eval_terminated": fell[0] if fell else ""})
     if finished:
         (run / "eval.json").write_text(json.dumps({"return_mean": rows[-1][2]}))
     return run
@@ -90,14 +91,26 @@ def test_stability_after_first_reaching_the_threshold():
     assert last["reached"] == 50_000 and last["n_after"] == 0 and last["share_after"] is None
 
 
+def test_stability_counts_the_dips_that_had_a_fall():
+    """Of the evaluations below the threshold after reaching it, those with a terminal episode; dips without a
+    logged count (older logs) and the evaluations before reaching it are not counted."""
+    curve = [(5_000, 0.2), (10_000, 0.95), (15_000, 0.6), (20_000, 0.85), (25_000, 0.93), (30_000, 0.7)]
+    terminated = {5_000: (5, 5), 10_000: (0, 5), 15_000: (2, 5), 20_000: (0, 5), 25_000: (1, 5)}
+    st = progress.stability(curve, 0.9, terminated)
+    assert (st["n_dips"], st["n_dips_logged"], st["n_dips_with_fall"]) == (3, 2, 1)
+    assert (st["dip_episodes_fell"], st["dip_episodes"]) == (2, 10)
+    assert progress.stability(curve, 0.9)["n_dips_logged"] == 0
+
+
 def test_progress_stability_cli(tmp_path, capsys):
-    make_run(tmp_path, "lsiq", 1_500_000, [(25_000, 90.0, 1100.0, 0.3), (50_000, 95.0, 3200.0, 0.98),
-                                           (75_000, 95.0, 1500.0, 0.45), (100_000, 95.0, 3250.0, 0.99)])
+    make_run(tmp_path, "lsiq", 1_500_000, [(25_000, 90.0, 1100.0, 0.3, 5), (50_000, 95.0, 3200.0, 0.98, 0),
+                                           (75_000, 95.0, 1500.0, 0.665, 3), (100_000, 95.0, 3250.0, 0.99, 0)])
     make_run(tmp_path, "sqil", 1_000_000, [(25_000, 90.0, 900.0, 0.25)])
     assert progress.main([str(tmp_path), "--stability", "0.9"]) == 0
     out = capsys.readouterr().out
+    # three decimals for the minimum: 0.665 must not read as 0.67 (nor 0.899 as >= 0.9)
     assert ("Hopper.run.perfect lsiq seed 0: >= 0.9 first at 50k; after it 2 evaluations, 50 % >= 0.9, "
-            "min 0.45, mean 0.72") in out
+            "min 0.665, mean 0.83; of the 1 below it, 1 had an episode end in a fall (3 of 5 episodes)\n") in out
     assert "Hopper.run.perfect sqil seed 0: never >= 0.9" in out
 
 
@@ -118,5 +131,5 @@ def test_runs_with_an_actor_average_get_a_second_curve_and_stability_line(tmp_pa
     assert "Hopper.run.perfect lsiq seed 0: 25k:0.95 50k:0.45 75k:0.97" in out
     assert "Hopper.run.perfect lsiq seed 0 (actor average): 25k:0.50 50k:0.93 75k:0.96" in out
     assert "lsiq seed 0 (actor average): >= 0.9 first at 50k; after it 1 evaluations, 100 % >= 0.9" in out
-    assert "lsiq seed 0: >= 0.9 first at 25k; after it 2 evaluations, 50 % >= 0.9, min 0.45" in out
+    assert "lsiq seed 0: >= 0.9 first at 25k; after it 2 evaluations, 50 % >= 0.9, min 0.450" in out
     assert "sqil seed 0 (actor average)" not in out          # runs without an average: one line each

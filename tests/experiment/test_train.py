@@ -87,6 +87,10 @@ def test_end_to_end_train_evaluate_and_rerun(env_vars, tmp_path):
     assert (ev["task_id"], ev["algorithm"], ev["dataset_type"], ev["steps"], ev["episodes"]) == (TASK, "bc", "perfect", 300, 3)
     # the stand-in expert balances for all 1000 steps; random actions last ~5, an untrained policy ~25
     assert max(ev["returns"]) == 1000, ev["returns"]
+    # episodes that fell (terminal state before the horizon) are counted, in eval.json and every log row
+    assert ev["terminated"] == sum(n < 1000 for n in ev["lengths"])
+    assert all(0 <= r["eval_terminated"] <= r["eval_episodes"] for r in jrows)
+    assert all(r["eval_terminated"] not in ("", None) for r in rows)
     assert ev["similarity"]["reference"] == "test split" and ev["similarity"]["nn_distance"] >= 0
     # the default baselines have no expert return for this task: no score, and a message saying why
     if ev["normalized_score"] is None:
