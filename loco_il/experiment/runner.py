@@ -289,6 +289,21 @@ class Runner:
 
     # ------------------------------------------------------------------ main
     def run(self) -> dict:
+        """Train, resume or report the run. A SIGINT/SIGTERM from the start on, also during the setup (which can
+        take minutes when a dataset is generated), stops the run at the first fit after it, with a checkpoint."""
+        self.logger = None
+
+        def note(msg: str) -> None:
+            line = f"[loco_il] {msg}"
+            if self.logger is not None:
+                self.logger.write(line)
+            else:
+                print(line, flush=True)
+
+        with stop_requests(note) as stop:
+            return self._run(stop)
+
+    def _run(self, stop) -> dict:
         from loco_il.algorithms import factory
         from loco_il.algorithms.factory import get_algorithm
         from loco_il.environments.registry import make
@@ -369,57 +384,57 @@ class Runner:
                             include_replay=bool(c.get("checkpoint_replay", True)))
 
         from loco_il.evaluation import identical_episodes_note
-        with stop_requests(lambda msg: logger.write(f"[loco_il] {msg}")) as stop:
-            try:
-                core = None if self.offline else self._make_core(window, counters, stop)
-                last_t, last_step = clock(), step
-                while step < budget:
-                    keep = False
-                    nxt_eval = (step // eval_every + 1) * eval_every
-                    nxt_ckpt = (step // ckpt_every + 1) * ckpt_every
-                    n = min(nxt_eval, nxt_ckpt, budget) - step
-                    done, fit_info = self._train_chunk(agent, core, n, unit, stop)
-                    step += done
-                    counters["step"] = step
-                    if not self.offline:
-                        counters["env_steps"] += done
-                    if step % eval_every == 0 or step == budget:
-                        now = clock()
-                        row = self._evaluate_row(counters, now, (step - last_step) / max(now - last_t, 1e-9),
-                                                 window, fit_info)
-                        last_t, last_step = clock(), step   # steps/s without the evaluation's time
-                        counters["n_evals"] += 1
-                        logger.log(row)
-                        score = row.get("normalized_score")   # None on tasks without baselines: nothing kept
-                        keep = keep_above is not None and score is not None and score >= keep_above
-                        logger.write(f"[loco_il] step {step}: eval return {row['eval_return_mean']:.2f} ± "
-                                     f"{row['eval_return_std']:.2f}" + (f", normalized {row['normalized_score']:.3f}"
-                                                                        if row.get("normalized_score") is not None
-                                                                        else "")
-                                     + (f", actor average {row['normalized_score_ema']:.3f}"
-                                        if row.get("normalized_score_ema") is not None else "")
-                                     + (" (all episodes identical)" if identical_episodes_note(
-                                         {"episodes": row["eval_episodes"],
-                                          "distinct_episodes": row["eval_distinct_episodes"]}) else ""))
-                    # a stop signal ends the chunk at the next fit and checkpoints there: within seconds
-                    # instead of up to a whole interval later (a scheduler's SIGTERM grace is often short)
-                    if step % ckpt_every == 0 or step == budget or stop.signal is not None or keep:
-                        checkpoint()
-                    if keep:
-                        path = keep_copy(self.run_dir, step)
-                        logger.write(f"[loco_il] normalized score {row['normalized_score']:.3f} >= {keep_above}: "
-                                     f"checkpoint kept as {path} (fork_from={path} branches from it)")
-                    if stop.signal is not None and step < budget:
-                        raise StoppedBySignal(f"stopped by {stop.signal} at step {step}/{budget}, checkpoint "
-                                              f"saved (re-run the same command to resume)")
-                    if stop_after is not None and step >= int(stop_after) and step < budget:
-                        raise StopRequested(f"stop_after_steps={stop_after}: stopped at step {step}/{budget} "
-                                            f"(re-run the same command to resume)")
-                result = self._final(agent, eval_env, counters, clock())
-            finally:
-                logger.close()
-                env.stop()
-                eval_env.stop()
+        try:
+            core = None if self.offline else self._make_core(window, counters, stop)
+            last_t, last_step = clock(), step
+            while step < budget:
+                keep = False
+                nxt_eval = (step // eval_every + 1) * eval_every
+                nxt_ckpt = (step // ckpt_every + 1) * ckpt_every
+                n = min(nxt_eval, nxt_ckpt, budget) - step
+                done, fit_info = self._train_chunk(agent, core, n, unit, stop)
+                step += done
+                counters["step"] = step
+                if not self.offline:
+                    counters["env_steps"] += done
+                # done == 0: a signal during the setup stopped an offline run before its first step; nothing to evaluate
+                if done and (step % eval_every == 0 or step == budget):
+                    now = clock()
+                    row = self._evaluate_row(counters, now, (step - last_step) / max(now - last_t, 1e-9),
+                                             window, fit_info)
+                    last_t, last_step = clock(), step   # steps/s without the evaluation's time
+                    counters["n_evals"] += 1
+                    logger.log(row)
+                    score = row.get("normalized_score")   # None on tasks without baselines: nothing kept
+                    keep = keep_above is not None and score is not None and score >= keep_above
+                    logger.write(f"[loco_il] step {step}: eval return {row['eval_return_mean']:.2f} ± "
+                                 f"{row['eval_return_std']:.2f}" + (f", normalized {row['normalized_score']:.3f}"
+                                                                    if row.get("normalized_score") is not None
+                                                                    else "")
+                                 + (f", actor average {row['normalized_score_ema']:.3f}"
+                                    if row.get("normalized_score_ema") is not None else "")
+                                 + (" (all episodes identical)" if identical_episodes_note(
+                                     {"episodes": row["eval_episodes"],
+                                      "distinct_episodes": row["eval_distinct_episodes"]}) else ""))
+                # a stop signal ends the chunk at the next fit and checkpoints there: within seconds
+                # instead of up to a whole interval later (a scheduler's SIGTERM grace is often short)
+                if step % ckpt_every == 0 or step == budget or stop.signal is not None or keep:
+                    checkpoint()
+                if keep:
+                    path = keep_copy(self.run_dir, step)
+                    logger.write(f"[loco_il] normalized score {row['normalized_score']:.3f} >= {keep_above}: "
+                                 f"checkpoint kept as {path} (fork_from={path} branches from it)")
+                if stop.signal is not None and step < budget:
+                    raise StoppedBySignal(f"stopped by {stop.signal} at step {step}/{budget}, checkpoint "
+                                          f"saved (re-run the same command to resume)")
+                if stop_after is not None and step >= int(stop_after) and step < budget:
+                    raise StopRequested(f"stop_after_steps={stop_after}: stopped at step {step}/{budget} "
+                                        f"(re-run the same command to resume)")
+            result = self._final(agent, eval_env, counters, clock())
+        finally:
+            logger.close()
+            env.stop()
+            eval_env.stop()
         checkpoint(finished=True)
         self._print_table(result)
         return result

@@ -378,11 +378,13 @@ def test_sigterm_stops_with_a_checkpoint_and_resumes(env_vars, tmp_path):
 
 def test_sigterm_stops_an_online_run_at_its_next_fit(env_vars, tmp_path):
     """An online learner stops at the fit after the signal, not at the end of its 100k-step chunk: the
-    checkpoint holds a whole number of fits (200 env steps each) and the run resumes from it."""
+    checkpoint holds a whole number of fits (200 env steps each) and the run resumes from it. The signal is
+    sent as soon as config.yaml exists, mostly while the envs, dataset and agent are still being built: the
+    handler is already in place then (it once was not, and a loaded machine killed the run with no message)."""
     results = tmp_path / "results"
     args = [*TINY_GAIL, "n_steps=200000", "eval.every=100000", "checkpoint_every=100000"]
     config = run_dir(results, "gail") / "config.yaml"
-    code, err, seconds = start_and_signal(env_vars, results, args, config.exists, delay=3.0)
+    code, err, seconds = start_and_signal(env_vars, results, args, config.exists)
     assert code == 130, err[-2000:]
     ckpt = torch.load(run_dir(results, "gail") / "checkpoint.pt", weights_only=False)
     at, env_steps = ckpt["counters"]["step"], ckpt["counters"]["env_steps"]
@@ -392,6 +394,21 @@ def test_sigterm_stops_an_online_run_at_its_next_fit(env_vars, tmp_path):
     resumed = train(env_vars, results, *args[:-3], f"n_steps={at + 400}", "eval.every=100000")
     assert f"resuming {run_dir(results, 'gail')} at step {at}/{at + 400}" in resumed.stdout
     assert json.loads((run_dir(results, "gail") / "eval.json").read_text())["steps"] == at + 400
+
+
+def test_sigterm_during_the_setup_of_an_offline_run(env_vars, tmp_path):
+    """BC signalled as soon as config.yaml exists: exit 130 with a checkpoint at a whole number of 100-step
+    chunks, and only the evaluations it reached are logged (a stop before the first step logs no row at
+    step 0)."""
+    results = tmp_path / "results"
+    args = ["algo=bc", "n_steps=20000", "eval.every=500", "checkpoint_every=10000"]
+    code, err, _ = start_and_signal(env_vars, results, args, (run_dir(results) / "config.yaml").exists)
+    assert code == 130, err[-2000:]
+    at = torch.load(run_dir(results) / "checkpoint.pt", weights_only=False)["counters"]["step"]
+    assert 0 <= at < 20000 and at % 100 == 0
+    assert f"stopped by SIGTERM at step {at}/20000, checkpoint saved" in err
+    log = run_dir(results) / "log.csv"
+    assert [int(r["step"]) for r in (csv_rows(log) if log.exists() else [])] == list(range(500, at + 1, 500))
 
 
 def test_resume_false_clears_the_run_dir(tmp_path):
