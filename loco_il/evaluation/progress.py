@@ -107,13 +107,14 @@ def stability(curve: list[tuple[int, float | None]], threshold: float,
     evaluations after `reached` that score below threshold (`n_dips`) and have that record (`n_dips_logged`):
     how many had at least one such episode (`n_dips_with_fall`), and those episodes against all of theirs.
     Evaluations without a score are left out."""
+    terminated = terminated or {}
     scored = [(step, score) for step, score in curve if score is not None]
     first = next((i for i, (_, score) in enumerate(scored) if score >= threshold), None)
     after = [] if first is None else scored[first + 1:]
     scores = [score for _, score in after]
     held = sum(x >= threshold for x in scores)
     dips = [step for step, score in after if score < threshold]
-    logged = [(terminated or {})[step] for step in dips if step in (terminated or {})]
+    logged = [terminated[step] for step in dips if step in terminated]
     return {"reached": None if first is None else scored[first][0], "n_after": len(after), "n_held": held,
             "share_after": held / len(after) if after else None,
             "min_after": min(scores) if scores else None,
