@@ -8,8 +8,9 @@
 #                           by side for $LONG_S seconds, by default with the README's Hopper setting (mixture, twin
 #                           critic, LayerNorm), the same seeds and evaluation as the CPU runs in benchmarks/il_results/long_runs
 # ONLY_LONG=1 skips the tests and the speed runs. LONG_NAME and LONG_OVERRIDES give the long runs another LS-IQ
-# setting (an ablation); END_BY=<s> stops them that many seconds after the script started, whatever LONG_S says,
-# so that one device call can spend all its time training and still return the logs.
+# setting (an ablation; LONG_OVERRIDES="" runs LS-IQ's defaults), LONG_TASK another task (default
+# Hopper.run.perfect); END_BY=<s> stops them that many seconds after the script started, whatever LONG_S says, so
+# that one device call can spend all its time training and still return the logs.
 #
 #     OUT=/tmp/out SPEED_S=20 LONG_S=240 LONG_SEEDS="1 2" bash benchmarks/gpu_graphed_runs.sh
 #     OUT=/tmp/out ONLY_LONG=1 LONG_S=270 LONG_SEEDS="3 4 5 6" bash benchmarks/gpu_graphed_runs.sh
@@ -22,8 +23,9 @@ SPEED_S=${SPEED_S:-20}
 LONG_S=${LONG_S:-270}
 LONG_SEEDS=${LONG_SEEDS:-1 2}
 ONLY_LONG=${ONLY_LONG:-0}
+LONG_TASK=${LONG_TASK:-Hopper.run.perfect}
 LONG_NAME=${LONG_NAME:-lsiq_mixture_2critics_ln_graph}
-LONG_OVERRIDES=${LONG_OVERRIDES:-algo.params.objective=mixture algo.params.n_critics=2 algo.params.critic_layer_norm=true}
+LONG_OVERRIDES=${LONG_OVERRIDES-algo.params.objective=mixture algo.params.n_critics=2 algo.params.critic_layer_norm=true}
 END_BY=${END_BY:-}
 RUNS=${RUNS:-/tmp/gpu_graphed_runs_dirs}
 PY=${PYTHON:-python3}
@@ -34,7 +36,7 @@ stamp() { echo "[gpu_graphed_runs $(date +%T)] $*"; }
 stamp "start; $(nvidia-smi --query-gpu=name,driver_version --format=csv,noheader 2>/dev/null)"
 # The long runs' dataset (100 expert episodes), generated once here (while the tests run) rather than by each of
 # the runs started side by side below.
-$PY -c "from loco_il import LocoEnv; LocoEnv.make('Hopper.run.perfect').create_dataset(verbose=False)" \
+$PY -c "from loco_il import LocoEnv; LocoEnv.make('$LONG_TASK').create_dataset(verbose=False)" \
     > "$OUT/dataset.txt" 2>&1 &
 datagen=$!
 if [[ $ONLY_LONG != 1 ]]; then
@@ -42,7 +44,7 @@ if [[ $ONLY_LONG != 1 ]]; then
         tests/algorithms/test_onpolicy_losses.py tests/experiment/test_train.py -k cuda 2>&1 | tail -n 25 > "$OUT/cuda_tests.txt"
     stamp "tests: $(tail -n 1 "$OUT/cuda_tests.txt")"
 fi
-wait $datagen; stamp "dataset: exit $?"
+wait $datagen; stamp "dataset ($LONG_TASK): exit $?"
 
 if [[ $ONLY_LONG != 1 ]]; then   # after the dataset: each speed run has the machine to itself
     small="dataset.n_episodes=12 algo.params.initial_replay_size=1000 algo.params.cuda_graph=true"
@@ -59,11 +61,11 @@ if [[ $ONLY_LONG != 1 ]]; then   # after the dataset: each speed run has the mac
 fi
 
 if [[ -n $END_BY ]]; then LONG_S=$(( END_BY - SECONDS )); fi   # END_BY replaces LONG_S
-stamp "long runs: $LONG_NAME, seeds $LONG_SEEDS, ${LONG_S} s"
+stamp "long runs: $LONG_TASK $LONG_NAME, seeds $LONG_SEEDS, ${LONG_S} s"
 # LS-IQ graphed (default: the README's Hopper setting), the seeds side by side (a run dir already in $RUNS resumes)
 pids=()
 for seed in $LONG_SEEDS; do
-    timeout -s TERM "$LONG_S" $PY train.py task=Hopper.run.perfect algo=lsiq seed="$seed" n_steps=1500000 \
+    timeout -s TERM "$LONG_S" $PY train.py task="$LONG_TASK" algo=lsiq seed="$seed" n_steps=1500000 \
         eval.every=5000 checkpoint_every=25000 results_dir="$RUNS" logger=csv device=cuda \
         algo.params.cuda_graph=true $LONG_OVERRIDES name="$LONG_NAME" > "$RUNS/seed$seed.out" 2>&1 &
     pids+=($!)
