@@ -13,8 +13,10 @@ the numbers are needed. `--stability 0.9` adds, per run, whether it stays at the
 the first evaluation scoring >= 0.9 and, over the evaluations after it, the share that also do, their
 minimum and their mean, and, for logs that record `eval_terminated`, how many of the evaluations after it
 that score below the threshold had an episode end in a terminal state (a fall) and how many episodes did.
-Runs trained with `algo.params.actor_ema` get a second line for each, the moving
-average of the actor (`normalized_score_ema`), marked "actor average".
+A run that never gets there is given its best score and where. Runs trained with `algo.params.actor_ema`
+get a second line for each, the moving average of the actor (`normalized_score_ema`), marked "actor average".
+`--upto STEP` keeps only the evaluations at or before STEP in the curves and the stability lines, so that runs
+of different lengths (two settings, or a seed stopped early) are compared over the same env steps.
 """
 from __future__ import annotations
 
@@ -102,10 +104,11 @@ def stability(curve: list[tuple[int, float | None]], threshold: float,
               terminated: dict[int, tuple[int, int]] | None = None) -> dict[str, Any]:
     """Does a run stay at the expert once it reached it? `reached`: the first step scoring >= threshold (None if
     never); over the evaluations after it (`n_after`): how many also score >= threshold (`n_held`) and their
-    share, their min and mean.
+    share, their min and mean; `best` and `best_step`: the highest score and the first step it was logged.
     `terminated` ({step: (episodes that ended in a terminal state, episodes)}, from the log) adds, over the
     evaluations after `reached` that score below threshold (`n_dips`) and have that record (`n_dips_logged`):
-    how many had at least one such episode (`n_dips_with_fall`), and those episodes against all of theirs.
+    how many had at least one such episode (`n_dips_with_fall`), and those episodes against all of theirs;
+    the same over all scored evaluations with that record: `n_logged`, `n_with_fall`, `episodes_fell`, `episodes`.
     Evaluations without a score are left out."""
     terminated = terminated or {}
     scored = [(step, score) for step, score in curve if score is not None]
@@ -115,12 +118,17 @@ def stability(curve: list[tuple[int, float | None]], threshold: float,
     held = sum(x >= threshold for x in scores)
     dips = [step for step, score in after if score < threshold]
     logged = [terminated[step] for step in dips if step in terminated]
-    return {"reached": None if first is None else scored[first][0], "n_after": len(after), "n_held": held,
+    logged_all = [terminated[step] for step, _ in scored if step in terminated]
+    best = max(scored, key=lambda point: point[1], default=(None, None))
+    return {"reached": None if first is None else scored[first][0], "best": best[1], "best_step": best[0],
+            "n_after": len(after), "n_held": held,
             "share_after": held / len(after) if after else None,
             "min_after": min(scores) if scores else None,
             "mean_after": sum(scores) / len(scores) if scores else None,
             "n_dips": len(dips), "n_dips_logged": len(logged), "n_dips_with_fall": sum(n > 0 for n, _ in logged),
-            "dip_episodes_fell": sum(n for n, _ in logged), "dip_episodes": sum(m for _, m in logged)}
+            "dip_episodes_fell": sum(n for n, _ in logged), "dip_episodes": sum(m for _, m in logged),
+            "n_logged": len(logged_all), "n_with_fall": sum(n > 0 for n, _ in logged_all),
+            "episodes_fell": sum(n for n, _ in logged_all), "episodes": sum(m for _, m in logged_all)}
 
 
 def format_stability(row: dict[str, Any], threshold: float, key: str = "curve") -> str:
@@ -128,7 +136,11 @@ def format_stability(row: dict[str, Any], threshold: float, key: str = "curve") 
     st = stability(row[key], threshold, row.get("terminated") if key == "curve" else None)
     head = _head(row, key) + ":"
     if st["reached"] is None:
-        return f"{head} never >= {threshold:g}"
+        best = "" if st["best"] is None else f" (best {st['best']:.3f} at {st['best_step'] / 1000:g}k)"
+        falls = "" if not st["n_logged"] else (f"; {st['n_with_fall']} of its {st['n_logged']} evaluations had an "
+                                                 f"episode end in a fall ({st['episodes_fell']} of {st['episodes']} "
+                                                 "episodes)")
+        return f"{head} never >= {threshold:g}{best}{falls}"
     line = (f"{head} >= {threshold:g} first at {st['reached'] / 1000:g}k; after it {st['n_after']} evaluations, "
             f"{_cell(None if st['share_after'] is None else 100 * st['share_after'], '.0f')} % >= {threshold:g}, "
             f"min {_cell(st['min_after'], '.3f')}, mean {_cell(st['mean_after'], '.2f')}")
@@ -139,6 +151,16 @@ def format_stability(row: dict[str, Any], threshold: float, key: str = "curve") 
                  + f", {st['n_dips_with_fall']} had an episode end in a fall "
                    f"({st['dip_episodes_fell']} of {st['dip_episodes']} episodes)")
     return line
+
+
+def upto(row: dict[str, Any], step: int) -> dict[str, Any]:
+    """The row with its curves (and fall counts) cut to the evaluations at or before `step`."""
+    cut = dict(row)
+    for key in ("curve", "curve_ema"):
+        if row.get(key) is not None:
+            cut[key] = [(s, x) for s, x in row[key] if s <= step]
+    cut["terminated"] = {s: n for s, n in row.get("terminated", {}).items() if s <= step}
+    return cut
 
 
 def _curve_keys(row: dict[str, Any]) -> tuple[str, ...]:
@@ -153,6 +175,8 @@ def main(argv: list[str] | None = None) -> int:
                         help="also print each run's normalized score at every evaluation")
     parser.add_argument("--stability", type=float, metavar="SCORE",
                         help="also print whether each run stays at or above this normalized score once reached")
+    parser.add_argument("--upto", type=int, metavar="STEP",
+                        help="curves and stability over the evaluations at or before this env step only")
     args = parser.parse_args(argv)
     if not Path(args.root).is_dir():
         print(f"error: {args.root} is not a folder", file=sys.stderr)
@@ -165,13 +189,16 @@ def main(argv: list[str] | None = None) -> int:
     print("\n'rest (h)': the rest of the budget at the last interval's speed. 'resumes from': the step of the "
           "run's last checkpoint, where re-running its command continues (evaluations logged after it are run "
           "again); n/a for finished runs and runs without checkpoint.json.")
+    if args.upto is not None:
+        rows = [upto(row, args.upto) for row in rows]
+    upto_note = "" if args.upto is None else f" (evaluations up to {args.upto / 1000:g}k)"
     if args.curves:
-        print("\nnormalized score at each evaluation:")
+        print(f"\nnormalized score at each evaluation{upto_note}:")
         for row in rows:
             for key in _curve_keys(row):
                 print(format_curve(row, key))
     if args.stability is not None:
-        print(f"\nonce at >= {args.stability:g}, does it stay?")
+        print(f"\nonce at >= {args.stability:g}, does it stay?{upto_note}")
         for row in rows:
             for key in _curve_keys(row):
                 print(format_stability(row, args.stability, key))

@@ -133,3 +133,19 @@ def test_runs_with_an_actor_average_get_a_second_curve_and_stability_line(tmp_pa
     assert "lsiq seed 0 (actor average): >= 0.9 first at 50k; after it 1 evaluations, 100 % >= 0.9" in out
     assert "lsiq seed 0: >= 0.9 first at 25k; after it 2 evaluations, 50 % >= 0.9, min 0.450" in out
     assert "sqil seed 0 (actor average)" not in out          # runs without an average: one line each
+
+
+def test_upto_compares_runs_over_the_same_env_steps(tmp_path, capsys):
+    """--upto cuts the curves, the stability lines and their fall counts at a step; a run that never gets there is
+    given its best score (the first step at it) and, where the log counts them, its falls."""
+    make_run(tmp_path, "lsiq", 1_500_000, [(25_000, 90.0, 1100.0, 0.3, 5), (50_000, 95.0, 1500.0, 0.45, 2),
+                                           (75_000, 95.0, 1500.0, 0.45, 1), (100_000, 95.0, 3250.0, 0.99, 0)])
+    assert progress.main([str(tmp_path), "--curves", "--stability", "0.9", "--upto", "75000"]) == 0
+    out = capsys.readouterr().out
+    assert "normalized score at each evaluation (evaluations up to 75k):\nHopper.run.perfect lsiq seed 0: " \
+           "25k:0.30 50k:0.45 75k:0.45\n" in out
+    assert ("Hopper.run.perfect lsiq seed 0: never >= 0.9 (best 0.450 at 50k); 3 of its 3 evaluations had an "
+            "episode end in a fall (8 of 15 episodes)\n") in out
+    assert "| Hopper.run.perfect | lsiq | 0 | 100000 |" in out      # the table still shows where the run is
+    assert progress.main([str(tmp_path), "--stability", "0.9"]) == 0
+    assert "lsiq seed 0: >= 0.9 first at 100k; after it 0 evaluations" in capsys.readouterr().out
