@@ -11,6 +11,7 @@ observations ``env`` emits (``.pomdp`` and ``hide=`` masks applied, ``info["obs_
 """
 from __future__ import annotations
 
+import inspect
 import os
 from typing import Any, Sequence
 
@@ -25,7 +26,8 @@ def create_dataset(env: Any, n_trajectories: int | None = None, split: str | Non
                    n_episodes: int | None = None, generation_seed: int = 0,
                    expert_path: str | os.PathLike | None = None, expert: Any = None,
                    snapshots: Sequence[Any] | None = None, regenerate: bool = False, full_obs: bool = False,
-                   return_init_states: bool = False, verbose: bool = True, **provider_kwargs: Any):
+                   return_init_states: bool = False, verbose: bool = True, workers: int = 1,
+                   **provider_kwargs: Any):
     """The dataset of ``env``'s Task-ID (a ``LocoEnv`` or a Task-ID string).
 
     Args:
@@ -43,6 +45,9 @@ def create_dataset(env: Any, n_trajectories: int | None = None, split: str | Non
         return_init_states: also return the :class:`~loco_il.datasets.providers.InitStates`
             of the returned episodes (None for providers that have none).
         verbose: print generation progress.
+        workers: processes that generate a rollout dataset's episodes (perfect, preference: the same
+            data for any number); providers that roll out nothing ignore it. Scripts that pass > 1 must
+            start their work under ``if __name__ == "__main__":`` (worker processes are spawned).
         provider_kwargs: passed on to the provider (e.g. to a `real` provider).
 
     Returns:
@@ -62,6 +67,10 @@ def create_dataset(env: Any, n_trajectories: int | None = None, split: str | Non
         if value is not None:
             kwargs[name] = value
     kwargs.update(generation_seed=int(generation_seed), regenerate=bool(regenerate), verbose=bool(verbose))
+    if int(workers) < 1:
+        raise ValueError(f"workers must be >= 1, got {workers}")
+    if int(workers) > 1 and "workers" in inspect.signature(provider).parameters:
+        kwargs["workers"] = int(workers)
     result = provider(env, **kwargs)
     data, init = result if isinstance(result, tuple) else (result, None)
     if not isinstance(data, Trajectories):

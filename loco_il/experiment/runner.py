@@ -145,7 +145,7 @@ def apply_per_algo(cfg: dict, cli_overrides: Sequence[str] = ()) -> dict:
 # ----------------------------------------------------------------------------- datasets
 def dataset_kwargs(dcfg: Mapping[str, Any]) -> dict[str, Any]:
     """Keyword arguments of `create_dataset` (besides env and split) from the config's `dataset` group."""
-    kwargs = {k: dcfg[k] for k in ("n_episodes", "expert_path") if dcfg.get(k) is not None}
+    kwargs = {k: dcfg[k] for k in ("n_episodes", "expert_path", "workers") if dcfg.get(k) is not None}
     kwargs.update({k: v for k, v in (dcfg.get("provider_kwargs") or {}).items()})
     return dict(n_trajectories=dcfg.get("n_trajectories"), portion=tuple(dcfg.get("portion") or (0.0, 0.75)),
                 seed=int(dcfg.get("split_seed", 0)), generation_seed=int(dcfg.get("generation_seed", 0)),

@@ -315,3 +315,72 @@ def test_baselines(tmp_path):
         for part in ("random", "expert"):
             if part in entry:
                 assert {"return_mean", "return_std", "episodes", "seed", "command", "commit"} <= set(entry[part]), key
+
+
+# ----------------------------------------------------------------------------- worker processes
+
+
+def _rollout_both_ways(task_id, policy, n, horizon, log=None):
+    env = make(task_id)
+    seeds = prov.episode_seeds(0, n)
+    one = prov.rollout(env, policy, seeds, horizon=horizon)
+    many = prov.rollout(env, policy, seeds, horizon=horizon, workers=2, log=log, label=task_id)
+    return one, many
+
+
+def _assert_same_rollouts(one, many):
+    (d1, i1), (d2, i2) = one, many
+    for name in ("obs", "next_obs", "actions", "rewards", "absorbing", "last"):
+        np.testing.assert_array_equal(getattr(d2, name), getattr(d1, name), err_msg=name)
+    for name in ("qpos", "qvel", "seeds"):
+        np.testing.assert_array_equal(getattr(i2, name), getattr(i1, name), err_msg=name)
+    assert d2.info == d1.info
+
+
+def test_workers_record_the_same_episodes_in_seed_order():
+    """Episodes recorded in 2 spawned processes (each with its own env) equal those of one process, bit for bit,
+    for a trained expert file and for the quadrupeds' built-in expert, which reads the simulator at every step;
+    the progress lines still count the episodes in order."""
+    from loco_il.experts.policy import load_expert
+    lines: list[str] = []
+    hopper = load_expert(expert_mod.SHIPPED_DIR / "Hopper.run" / "expert.pt")
+    one, many = _rollout_both_ways("Hopper.run.perfect", hopper, 5, 60, log=lines.append)
+    _assert_same_rollouts(one, many)
+    starts = [a for a, _ in one[0].episode_bounds()]
+    assert len(starts) == 5 and len(np.unique(one[0].obs[starts], axis=0)) == 5     # five different episodes
+    assert "recording 5 episodes in 2 worker processes" in lines[0]
+    assert [line.split("episode ")[1].split(",")[0] for line in lines[1:]] == [f"{k}/5" for k in range(1, 6)]
+    env = make("UnitreeA1.simple.perfect")
+    trot = expert_mod.builtin_expert("UnitreeA1.simple").expert(env)
+    _assert_same_rollouts(*_rollout_both_ways("UnitreeA1.simple.perfect", trot, 3, 40))
+
+
+class _Unpicklable(LinearExpert):
+    def __init__(self, *args):
+        super().__init__(*args)
+        self.hook = lambda obs: obs      # a lambda: pickle cannot send this policy to a worker
+
+
+def test_a_policy_that_cannot_be_pickled_is_recorded_in_this_process(hopper_expert):
+    lines: list[str] = []
+    policy = _Unpicklable(hopper_expert.W, hopper_expert.b)
+    one, many = _rollout_both_ways("Hopper.run.perfect", policy, 3, 30, log=lines.append)
+    _assert_same_rollouts(one, many)
+    assert "recording the episodes in this process (the policy cannot be sent to worker processes" in lines[0]
+
+
+def test_create_dataset_passes_workers_to_rollout_providers(dirs, hopper_expert, monkeypatch):
+    seen = []
+    real_rollout = expert_mod.rollout
+    monkeypatch.setattr(expert_mod, "rollout", lambda *a, **k: seen.append(k["workers"]) or real_rollout(
+        *a, **{**k, "workers": 1}))
+    data = create_dataset("Hopper.run.perfect", expert=hopper_expert, n_episodes=2, verbose=False, workers=3)
+    assert seen == [3] and data.n_trajectories == 2
+    with pytest.raises(ValueError, match="workers must be >= 1"):
+        create_dataset("Hopper.run.perfect", expert=hopper_expert, n_episodes=2, verbose=False, workers=0)
+
+
+def test_train_configs_dataset_workers_reaches_create_dataset():
+    from loco_il.experiment.runner import dataset_kwargs
+    assert dataset_kwargs({"workers": 4, "n_episodes": 12})["workers"] == 4
+    assert "workers" not in dataset_kwargs({"workers": None})

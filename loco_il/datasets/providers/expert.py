@@ -398,67 +398,92 @@ def start_episode(policy: Any, env: Any, seed: int) -> None:
         hook(env, int(seed))
 
 
+def record_episode(env: Any, policy: Policy, seed: int, horizon: int, index: int = 0) -> dict[str, Any]:
+    """One deterministic episode of ``policy`` from ``env.seed(seed); env.reset()``: its initial simulator
+    state, the transitions (obs, next_obs, actions, rewards) and whether it ended in an absorbing state.
+    Depends on nothing but the seed, so episodes can be recorded in any env of the task, in any order."""
+    nu = int(env.model.nu)
+    env.seed(int(seed))
+    obs = env.reset()
+    qpos, qvel = env.get_sim_state()
+    start_episode(policy, env, int(seed))
+    ep_obs, ep_act, ep_rew, ep_next = [], [], [], []
+    absorbing = False
+    for t in range(horizon):
+        a = np.asarray(policy(obs), dtype=np.float64).reshape(-1)
+        if a.shape != (nu,):
+            raise ValueError(f"the expert returned an action of shape {a.shape}, the env needs ({nu},)")
+        if not np.isfinite(a).all():
+            raise ValueError(f"the expert returned a non-finite action at step {t} of episode {index}: {a}")
+        a = np.clip(a, -1.0, 1.0)   # what env.step applies anyway: record exactly what was executed
+        nobs, r, absorbing, _ = env.step(a)
+        ep_obs.append(obs)
+        ep_act.append(a)
+        ep_rew.append(r)
+        ep_next.append(nobs)
+        obs = nobs
+        if absorbing:
+            break
+    return {"qpos": np.asarray(qpos), "qvel": np.asarray(qvel), "obs": ep_obs, "next_obs": ep_next,
+            "actions": ep_act, "rewards": ep_rew, "absorbing": bool(absorbing)}
+
+
 def rollout(env: Any, policy: Policy, seeds: Sequence[int], *, info: Mapping[str, Any] | None = None,
             log: Callable[[str], None] | None = None, label: str = "",
-            horizon: int | None = None) -> tuple[Trajectories, InitStates]:
+            horizon: int | None = None, workers: int = 1) -> tuple[Trajectories, InitStates]:
     """Roll out ``policy`` deterministically, one episode per seed, and record everything.
 
     ``env`` should be a full-observation LocoEnv; episodes last at most ``horizon`` steps (default:
     the task's). The returned dataset's info is ``info`` plus ``episode_returns`` and
-    ``expert_return_mean`` / ``expert_return_std``.
+    ``expert_return_mean`` / ``expert_return_std``. ``workers`` > 1 records the episodes in that many
+    processes, each with its own env of ``env.task_id`` (`rollout_workers.record_in_workers`); the data are
+    the same as with one, since an episode depends only on its seed.
     """
     horizon = int(env.info.horizon if horizon is None else horizon)
     if horizon < 1:
         raise ValueError(f"horizon must be >= 1, got {horizon}")
-    nu = int(env.model.nu)
-    obs_l, nobs_l, act_l, rew_l, abs_l, last_l = [], [], [], [], [], []
-    qpos0, qvel0, returns, lengths = [], [], [], []
     n = len(seeds)
     every = max(1, n // 10)
     t0 = time.perf_counter()
-    for i, s in enumerate(seeds):
-        env.seed(int(s))
-        obs = env.reset()
-        q, v = env.get_sim_state()
-        qpos0.append(q)
-        qvel0.append(v)
-        start_episode(policy, env, int(s))
-        ep_obs, ep_act, ep_rew, ep_next = [], [], [], []
-        absorbing = False
-        for t in range(horizon):
-            a = np.asarray(policy(obs), dtype=np.float64).reshape(-1)
-            if a.shape != (nu,):
-                raise ValueError(f"the expert returned an action of shape {a.shape}, the env needs ({nu},)")
-            if not np.isfinite(a).all():
-                raise ValueError(f"the expert returned a non-finite action at step {t} of episode {i}: {a}")
-            a = np.clip(a, -1.0, 1.0)   # what env.step applies anyway: record exactly what was executed
-            nobs, r, absorbing, _ = env.step(a)
-            ep_obs.append(obs)
-            ep_act.append(a)
-            ep_rew.append(r)
-            ep_next.append(nobs)
-            obs = nobs
-            if absorbing:
-                break
-        k = len(ep_obs)
-        obs_l += ep_obs
-        nobs_l += ep_next
-        act_l += ep_act
-        rew_l += ep_rew
-        abs_l += [False] * (k - 1) + [bool(absorbing)]
-        last_l += [False] * (k - 1) + [True]
-        returns.append(float(np.sum(ep_rew)))
-        lengths.append(k)
+    returns: list[float] = []
+
+    def progress(i: int, episode: Mapping[str, Any]) -> None:
+        returns.append(float(np.sum(episode["rewards"])))
         if log is not None and ((i + 1) % every == 0 or i + 1 == n):
-            log(f"[loco_il.datasets] {label}: episode {i + 1}/{n}, return {returns[-1]:.2f}, length {k}, "
-                f"mean return {np.mean(returns):.2f}, {time.perf_counter() - t0:.1f}s")
+            log(f"[loco_il.datasets] {label}: episode {i + 1}/{n}, return {returns[-1]:.2f}, "
+                f"length {len(episode['rewards'])}, mean return {np.mean(returns):.2f}, "
+                f"{time.perf_counter() - t0:.1f}s")
+
+    if int(workers) > 1:
+        from loco_il.datasets.providers.rollout_workers import record_in_workers
+        episodes = record_in_workers(env, policy, seeds, horizon, int(workers), on_episode=progress, log=log)
+    else:
+        episodes = []
+        for i, s in enumerate(seeds):
+            episodes.append(record_episode(env, policy, int(s), horizon, i))
+            progress(i, episodes[-1])
+    return assemble_episodes(episodes, seeds, info)
+
+
+def assemble_episodes(episodes: Sequence[Mapping[str, Any]], seeds: Sequence[int],
+                      info: Mapping[str, Any] | None = None) -> tuple[Trajectories, InitStates]:
+    """The dataset and initial states of recorded episodes (`record_episode`), in the order given."""
+    def stacked(key: str, dtype: Any) -> np.ndarray:
+        return np.asarray([x for ep in episodes for x in ep[key]], dtype=dtype)
+
+    flags = [([False] * (len(ep["rewards"]) - 1) + [ep["absorbing"]], [False] * (len(ep["rewards"]) - 1) + [True])
+             for ep in episodes]
+    returns = [float(np.sum(ep["rewards"])) for ep in episodes]
     info = dict(info or {})
     info.update(episode_returns=returns, expert_return_mean=float(np.mean(returns)),
-                expert_return_std=float(np.std(returns)), n_episodes=n, mean_episode_length=float(np.mean(lengths)))
-    data = Trajectories(np.asarray(obs_l, dtype=np.float64), np.asarray(nobs_l, dtype=np.float64),
-                        np.asarray(act_l, dtype=np.float64), np.asarray(rew_l, dtype=np.float64),
-                        np.asarray(abs_l, dtype=bool), np.asarray(last_l, dtype=bool), info)
-    return data, InitStates(np.asarray(qpos0), np.asarray(qvel0), np.asarray(seeds, dtype=np.int64))
+                expert_return_std=float(np.std(returns)), n_episodes=len(episodes),
+                mean_episode_length=float(np.mean([len(ep["rewards"]) for ep in episodes])))
+    data = Trajectories(stacked("obs", np.float64), stacked("next_obs", np.float64), stacked("actions", np.float64),
+                        stacked("rewards", np.float64), np.asarray([f for a, _ in flags for f in a], dtype=bool),
+                        np.asarray([f for _, l in flags for f in l], dtype=bool), info)
+    init = InitStates(np.asarray([ep["qpos"] for ep in episodes]), np.asarray([ep["qvel"] for ep in episodes]),
+                      np.asarray(seeds, dtype=np.int64))
+    return data, init
 
 
 def replay_episode(env: Any, qpos: np.ndarray, qvel: np.ndarray, actions: np.ndarray,
@@ -532,9 +557,10 @@ def verify_replay(env: Any, data: Trajectories, init: InitStates, episode: int =
 def cached_rollouts(gen_env: Any, policy: Any, *, key: str, dataset_type: str, name: str, n_episodes: int,
                     seed: int, info: Mapping[str, Any], regenerate: bool = False,
                     log: Callable[[str], None] | None = _log_default,
-                    horizon: int | None = None) -> tuple[Trajectories, InitStates, Path]:
+                    horizon: int | None = None, workers: int = 1) -> tuple[Trajectories, InitStates, Path]:
     """Load the rollouts of ``policy`` from the cache, or generate, verify (`verify_replay`) and save
-    them (atomically). ``horizon``: episode length cap (default: the task's; part of the cache key)."""
+    them (atomically). ``horizon``: episode length cap (default: the task's; part of the cache key).
+    ``workers``: processes recording the episodes (the same data for any number; not part of the key)."""
     import mujoco
     checksum = _policy_checksum(policy)
     fields = {"generator": GENERATOR_VERSION, "task": key, "dataset_type": dataset_type, "policy": checksum,
@@ -566,7 +592,7 @@ def cached_rollouts(gen_env: Any, policy: Any, *, key: str, dataset_type: str, n
     }
     full_info.update(info)
     data, init = rollout(gen_env, policy, episode_seeds(seed, n_episodes), info=full_info, log=log,
-                         label=f"{key} {name}", horizon=horizon)
+                         label=f"{key} {name}", horizon=horizon, workers=workers)
     verify_replay(gen_env, data, init)
     init.save(side)          # sidecar first: a dataset file on disk always has its sidecar
     data.save(path)
@@ -579,10 +605,11 @@ def cached_rollouts(gen_env: Any, policy: Any, *, key: str, dataset_type: str, n
 
 def perfect_provider(env: Any, *, n_episodes: int | None = None, generation_seed: int = 0, expert: Any = None,
                      expert_path: str | os.PathLike | None = None, regenerate: bool = False,
-                     verbose: bool = True, horizon: int | None = None,
+                     verbose: bool = True, horizon: int | None = None, workers: int = 1,
                      **unused: Any) -> tuple[Trajectories, InitStates]:
     """The `perfect` dataset of ``env``'s task (full observations) and its initial states.
-    ``horizon`` caps the episode length (default: the task's horizon)."""
+    ``horizon`` caps the episode length (default: the task's horizon); ``workers`` > 1 generates the
+    episodes in that many processes (`rollout`)."""
     _reject_unused(unused, "perfect")
     key = _expert_key(env, expert, expert_path)
     gen_env = generation_env(env, key)
@@ -595,7 +622,7 @@ def perfect_provider(env: Any, *, n_episodes: int | None = None, generation_seed
         info = {"source": SOURCE_PERFECT, "expert": where, "expert_metadata": _expert_meta(policy)}
         data, init, _ = cached_rollouts(gen_env, policy, key=key, dataset_type="perfect", name="perfect",
                                         n_episodes=n, seed=generation_seed, info=info, regenerate=regenerate,
-                                        log=_log_default if verbose else None, horizon=horizon)
+                                        log=_log_default if verbose else None, horizon=horizon, workers=workers)
     finally:
         gen_env.stop()
     return data, init
@@ -618,14 +645,15 @@ def _reject_unused(unused: Mapping[str, Any], kind: str) -> None:
 def create_preference_sets(env: Any, *, n_episodes: int | None = None, generation_seed: int = 0,
                            snapshots: Sequence[Any] | None = None, regenerate: bool = False,
                            verbose: bool = True, min_levels: int = MIN_PREFERENCE_LEVELS,
-                           return_init_states: bool = False, horizon: int | None = None
+                           return_init_states: bool = False, horizon: int | None = None, workers: int = 1
                            ) -> list[Trajectories] | tuple[list[Trajectories], list[InitStates]]:
     """One dataset per snapshot, ordered by mean return from worst to best (``info["level"]`` 0..K-1).
 
     ``snapshots``: expert files or expert objects (default: the task's installed
     ``snapshots/level_<k>.pt``, else its built-in expert's levels). Every set has ``n_episodes``
     episodes (default 25) from the same reset seeds, and its info holds ``level``, ``snapshot``,
-    ``mean_return`` and the full ``levels`` table. ``horizon`` caps the episode length.
+    ``mean_return`` and the full ``levels`` table. ``horizon`` caps the episode length; ``workers`` > 1
+    generates each set's episodes in that many processes (`rollout`).
     """
     if isinstance(env, str):
         from loco_il.environments.registry import make
@@ -664,7 +692,8 @@ def create_preference_sets(env: Any, *, n_episodes: int | None = None, generatio
                     "expert_metadata": _expert_meta(policy)}
             data, init, _ = cached_rollouts(gen_env, policy, key=key, dataset_type="preference", name=name,
                                             n_episodes=n, seed=generation_seed, info=info, regenerate=regenerate,
-                                            log=_log_default if verbose else None, horizon=horizon)
+                                            log=_log_default if verbose else None, horizon=horizon,
+                                            workers=workers)
             sets.append((data, init, where))
     finally:
         gen_env.stop()
@@ -685,7 +714,8 @@ def create_preference_sets(env: Any, *, n_episodes: int | None = None, generatio
 def preference_provider(env: Any, *, n_episodes: int | None = None, generation_seed: int = 0,
                         snapshots: Sequence[Any] | None = None, regenerate: bool = False,
                         verbose: bool = True, expert: Any = None, expert_path: Any = None,
-                        horizon: int | None = None, **unused: Any) -> tuple[Trajectories, InitStates]:
+                        horizon: int | None = None, workers: int = 1,
+                        **unused: Any) -> tuple[Trajectories, InitStates]:
     """All preference levels concatenated (worst first), with ``info["episode_level"]`` per episode."""
     _reject_unused(unused, "preference")
     if expert is not None or expert_path is not None:
@@ -693,7 +723,7 @@ def preference_provider(env: Any, *, n_episodes: int | None = None, generation_s
                         "(files or expert objects), not expert=/expert_path=")
     sets, inits = create_preference_sets(env, n_episodes=n_episodes, generation_seed=generation_seed,
                                          snapshots=snapshots, regenerate=regenerate, verbose=verbose,
-                                         return_init_states=True, horizon=horizon)
+                                         return_init_states=True, horizon=horizon, workers=workers)
     info = dict(sets[0].info)
     for k in ("level", "mean_return", "snapshot", "snapshot_index", "expert_metadata", "episode_returns",
               "expert_return_mean", "expert_return_std", "mean_episode_length", "cache_key", "cache_fields"):
@@ -777,7 +807,7 @@ __all__ = [
     "register_builtin_expert", "builtin_expert", "builtin_experts", "describe_policy", "start_episode",
     "verify_replay", "InitStates", "datasets_cache_dir", "expert_search_path",
     "task_key", "available_experts", "available_snapshot_sets", "find_expert", "find_snapshots", "load_policy",
-    "episode_seeds", "rollout", "replay_episode", "generation_env", "cached_rollouts", "init_states_path",
+    "episode_seeds", "rollout", "record_episode", "assemble_episodes", "replay_episode", "generation_env", "cached_rollouts", "init_states_path",
     "perfect_provider", "create_preference_sets", "preference_provider", "episode_levels", "transition_levels",
     "dataset_init_state_sampler",
 ]
