@@ -302,6 +302,10 @@ def test_a_run_resumes_with_another_device_or_cuda_graph_but_not_another_objecti
     assert config_differences(ran, on_cpu) == []
     on_cpu["algo"]["params"]["critic_layer_norm"] = True
     assert config_differences(ran, on_cpu) == ["algo.params.critic_layer_norm: False -> True"]
+    # dataset.workers (added later) changes how the dataset is generated, not what it holds
+    on_cpu["algo"]["params"]["critic_layer_norm"] = False
+    assert config_differences({**ran, "dataset": {"n_episodes": 12}},
+                              {**on_cpu, "dataset": {"n_episodes": 12, "workers": 8}}) == []
 
 
 def test_killed_run_resumes(env_vars, tmp_path):
