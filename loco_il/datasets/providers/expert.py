@@ -424,8 +424,9 @@ def record_episode(env: Any, policy: Policy, seed: int, horizon: int, index: int
         obs = nobs
         if absorbing:
             break
-    return {"qpos": np.asarray(qpos), "qvel": np.asarray(qvel), "obs": ep_obs, "next_obs": ep_next,
-            "actions": ep_act, "rewards": ep_rew, "absorbing": bool(absorbing)}
+    return {"qpos": np.asarray(qpos), "qvel": np.asarray(qvel), "obs": np.asarray(ep_obs, dtype=np.float64),
+            "next_obs": np.asarray(ep_next, dtype=np.float64), "actions": np.asarray(ep_act, dtype=np.float64),
+            "rewards": np.asarray(ep_rew, dtype=np.float64), "absorbing": bool(absorbing)}
 
 
 def rollout(env: Any, policy: Policy, seeds: Sequence[int], *, info: Mapping[str, Any] | None = None,
@@ -468,19 +469,19 @@ def rollout(env: Any, policy: Policy, seeds: Sequence[int], *, info: Mapping[str
 def assemble_episodes(episodes: Sequence[Mapping[str, Any]], seeds: Sequence[int],
                       info: Mapping[str, Any] | None = None) -> tuple[Trajectories, InitStates]:
     """The dataset and initial states of recorded episodes (`record_episode`), in the order given."""
-    def stacked(key: str, dtype: Any) -> np.ndarray:
-        return np.asarray([x for ep in episodes for x in ep[key]], dtype=dtype)
-
-    flags = [([False] * (len(ep["rewards"]) - 1) + [ep["absorbing"]], [False] * (len(ep["rewards"]) - 1) + [True])
-             for ep in episodes]
+    lengths = [len(ep["rewards"]) for ep in episodes]
+    ends = np.cumsum(lengths) - 1
+    last = np.zeros(sum(lengths), dtype=bool)
+    last[ends] = True
+    absorbing = np.zeros_like(last)
+    absorbing[ends] = [ep["absorbing"] for ep in episodes]    # only an episode's last step can be absorbing
     returns = [float(np.sum(ep["rewards"])) for ep in episodes]
     info = dict(info or {})
     info.update(episode_returns=returns, expert_return_mean=float(np.mean(returns)),
                 expert_return_std=float(np.std(returns)), n_episodes=len(episodes),
-                mean_episode_length=float(np.mean([len(ep["rewards"]) for ep in episodes])))
-    data = Trajectories(stacked("obs", np.float64), stacked("next_obs", np.float64), stacked("actions", np.float64),
-                        stacked("rewards", np.float64), np.asarray([f for a, _ in flags for f in a], dtype=bool),
-                        np.asarray([f for _, l in flags for f in l], dtype=bool), info)
+                mean_episode_length=float(np.mean(lengths)))
+    columns = [np.concatenate([ep[k] for ep in episodes]) for k in ("obs", "next_obs", "actions", "rewards")]
+    data = Trajectories(*columns, absorbing, last, info)
     init = InitStates(np.asarray([ep["qpos"] for ep in episodes]), np.asarray([ep["qvel"] for ep in episodes]),
                       np.asarray(seeds, dtype=np.int64))
     return data, init
