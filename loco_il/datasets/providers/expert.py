@@ -455,10 +455,11 @@ def rollout(env: Any, policy: Policy, seeds: Sequence[int], *, info: Mapping[str
                 f"length {len(episode['rewards'])}, mean return {np.mean(returns):.2f}, "
                 f"{time.perf_counter() - t0:.1f}s")
 
+    episodes = None
     if int(workers) > 1:
         from loco_il.datasets.providers.rollout_workers import record_in_workers
         episodes = record_in_workers(env, policy, seeds, horizon, int(workers), on_episode=progress, log=log)
-    else:
+    if episodes is None:     # one process, or a policy that cannot be sent to workers
         episodes = []
         for i, s in enumerate(seeds):
             episodes.append(record_episode(env, policy, int(s), horizon, i))

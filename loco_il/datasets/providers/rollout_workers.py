@@ -19,6 +19,8 @@ import pickle
 from concurrent.futures import ProcessPoolExecutor
 from typing import Any, Callable, Mapping, Sequence
 
+from loco_il.datasets.providers.expert import record_episode
+
 _ENV: Any = None        # the worker process's env and policy (set once by _start_worker)
 _POLICY: Any = None
 _HORIZON = 0
@@ -39,40 +41,30 @@ def _start_worker(task_id: str, policy_bytes: bytes, horizon: int, shape: tuple[
 
 
 def _record(job: tuple[int, int]) -> dict[str, Any]:
-    from loco_il.datasets.providers.expert import record_episode
     index, seed = job
     return record_episode(_ENV, _POLICY, seed, _HORIZON, index)
 
 
 def record_in_workers(env: Any, policy: Any, seeds: Sequence[int], horizon: int, workers: int, *,
                       on_episode: Callable[[int, Mapping[str, Any]], None] | None = None,
-                      log: Callable[[str], None] | None = None) -> list[dict[str, Any]]:
-    """`record_episode` for every seed, in up to ``workers`` processes; the episodes in seed order.
-    ``on_episode(i, episode)`` is called in order as they arrive (progress output)."""
-    from loco_il.datasets.providers.expert import record_episode
-
-    def here(why: str) -> list[dict[str, Any]]:
-        if log is not None:
-            log(f"[loco_il.datasets] recording the episodes in this process ({why})")
-        out = []
-        for i, s in enumerate(seeds):
-            out.append(record_episode(env, policy, int(s), horizon, i))
-            if on_episode is not None:
-                on_episode(i, out[-1])
-        return out
-
+                      log: Callable[[str], None] | None = None) -> list[dict[str, Any]] | None:
+    """`record_episode` for every seed, in up to ``workers`` processes; the episodes in seed order, or None
+    (after saying why through ``log``) when the policy cannot be sent to another process: the caller then
+    records them itself. ``on_episode(i, episode)`` is called in order as they arrive (progress output)."""
     try:
         policy_bytes = pickle.dumps(policy)
-    except Exception as exc:  # noqa: BLE001 - any pickling failure: record here, as with workers=1
-        return here(f"the policy cannot be sent to worker processes: {type(exc).__name__}: {exc}")
-    task_id = env.task_id
+    except Exception as exc:  # noqa: BLE001 - any pickling failure: the caller records in its own process
+        if log is not None:
+            log(f"[loco_il.datasets] recording the episodes in this process (the policy cannot be sent to worker "
+                f"processes: {type(exc).__name__}: {exc})")
+        return None
     n_procs = max(1, min(int(workers), len(seeds)))
     shape = (int(env.info.observation_space.shape[0]), int(env.model.nu))
     if log is not None:
         log(f"[loco_il.datasets] recording {len(seeds)} episodes in {n_procs} worker processes")
     jobs = [(i, int(s)) for i, s in enumerate(seeds)]
     with ProcessPoolExecutor(n_procs, mp_context=multiprocessing.get_context("spawn"), initializer=_start_worker,
-                             initargs=(task_id, policy_bytes, int(horizon), shape)) as pool:
+                             initargs=(env.task_id, policy_bytes, int(horizon), shape)) as pool:
         out = []
         for i, episode in enumerate(pool.map(_record, jobs)):
             out.append(episode)
