@@ -398,35 +398,42 @@ def start_episode(policy: Any, env: Any, seed: int) -> None:
         hook(env, int(seed))
 
 
-def record_episode(env: Any, policy: Policy, seed: int, horizon: int, index: int = 0) -> dict[str, Any]:
+def _step_episode(env: Any, obs: np.ndarray, act: Callable[[np.ndarray, int], np.ndarray],
+                  n_steps: int) -> dict[str, np.ndarray]:
+    """Step ``env`` from ``obs`` with ``act(obs, t)`` for at most ``n_steps`` steps, stopping after an absorbing
+    one: the transitions (obs, actions, next_obs, rewards, absorbing per step). Shared by recording and replay."""
+    out: dict[str, list] = {"obs": [], "actions": [], "next_obs": [], "rewards": [], "absorbing": []}
+    for t in range(n_steps):
+        a = act(obs, t)
+        nobs, r, absorbing, _ = env.step(a)
+        for key, value in zip(out, (obs, a, nobs, r, absorbing)):
+            out[key].append(value)
+        obs = nobs
+        if absorbing:
+            break
+    return {k: np.asarray(v, dtype=bool if k == "absorbing" else np.float64) for k, v in out.items()}
+
+
+def rollout_episode(env: Any, policy: Policy, seed: int, horizon: int, index: int = 0) -> dict[str, Any]:
     """One deterministic episode of ``policy`` from ``env.seed(seed); env.reset()``: its initial simulator
     state, the transitions (obs, next_obs, actions, rewards) and whether it ended in an absorbing state.
     Depends on nothing but the seed, so episodes can be recorded in any env of the task, in any order."""
     nu = int(env.model.nu)
-    env.seed(int(seed))
-    obs = env.reset()
-    qpos, qvel = env.get_sim_state()
-    start_episode(policy, env, int(seed))
-    ep_obs, ep_act, ep_rew, ep_next = [], [], [], []
-    absorbing = False
-    for t in range(horizon):
+
+    def act(obs: np.ndarray, t: int) -> np.ndarray:
         a = np.asarray(policy(obs), dtype=np.float64).reshape(-1)
         if a.shape != (nu,):
             raise ValueError(f"the expert returned an action of shape {a.shape}, the env needs ({nu},)")
         if not np.isfinite(a).all():
             raise ValueError(f"the expert returned a non-finite action at step {t} of episode {index}: {a}")
-        a = np.clip(a, -1.0, 1.0)   # what env.step applies anyway: record exactly what was executed
-        nobs, r, absorbing, _ = env.step(a)
-        ep_obs.append(obs)
-        ep_act.append(a)
-        ep_rew.append(r)
-        ep_next.append(nobs)
-        obs = nobs
-        if absorbing:
-            break
-    return {"qpos": np.asarray(qpos), "qvel": np.asarray(qvel), "obs": np.asarray(ep_obs, dtype=np.float64),
-            "next_obs": np.asarray(ep_next, dtype=np.float64), "actions": np.asarray(ep_act, dtype=np.float64),
-            "rewards": np.asarray(ep_rew, dtype=np.float64), "absorbing": bool(absorbing)}
+        return np.clip(a, -1.0, 1.0)   # what env.step applies anyway: record exactly what was executed
+
+    env.seed(int(seed))
+    obs = env.reset()
+    qpos, qvel = env.get_sim_state()
+    start_episode(policy, env, int(seed))
+    steps = _step_episode(env, obs, act, horizon)
+    return {"qpos": np.asarray(qpos), "qvel": np.asarray(qvel), **steps, "absorbing": bool(steps["absorbing"][-1])}
 
 
 def rollout(env: Any, policy: Policy, seeds: Sequence[int], *, info: Mapping[str, Any] | None = None,
@@ -462,14 +469,14 @@ def rollout(env: Any, policy: Policy, seeds: Sequence[int], *, info: Mapping[str
     if episodes is None:     # one process, or a policy that cannot be sent to workers
         episodes = []
         for i, s in enumerate(seeds):
-            episodes.append(record_episode(env, policy, int(s), horizon, i))
+            episodes.append(rollout_episode(env, policy, int(s), horizon, i))
             progress(i, episodes[-1])
     return assemble_episodes(episodes, seeds, info)
 
 
 def assemble_episodes(episodes: Sequence[Mapping[str, Any]], seeds: Sequence[int],
                       info: Mapping[str, Any] | None = None) -> tuple[Trajectories, InitStates]:
-    """The dataset and initial states of recorded episodes (`record_episode`), in the order given."""
+    """The dataset and initial states of recorded episodes (`rollout_episode`), in the order given."""
     lengths = [len(ep["rewards"]) for ep in episodes]
     ends = np.cumsum(lengths) - 1
     last = np.zeros(sum(lengths), dtype=bool)
@@ -500,18 +507,9 @@ def replay_episode(env: Any, qpos: np.ndarray, qvel: np.ndarray, actions: np.nda
         env.seed(int(seed))
     env.reset()
     obs = env.set_sim_state(np.asarray(qpos, dtype=np.float64), np.asarray(qvel, dtype=np.float64))
-    out_obs, out_next, out_rew, out_abs = [], [], [], []
-    for a in np.asarray(actions):
-        nobs, r, absorbing, _ = env.step(a)
-        out_obs.append(obs)
-        out_next.append(nobs)
-        out_rew.append(r)
-        out_abs.append(absorbing)
-        obs = nobs
-        if absorbing:
-            break
-    return {"obs": np.asarray(out_obs), "next_obs": np.asarray(out_next), "rewards": np.asarray(out_rew),
-            "absorbing": np.asarray(out_abs, dtype=bool)}
+    actions = np.asarray(actions)
+    steps = _step_episode(env, obs, lambda _, t: actions[t], len(actions))
+    return {k: steps[k] for k in ("obs", "next_obs", "rewards", "absorbing")}
 
 
 # ----------------------------------------------------------------------------- cache
@@ -809,7 +807,8 @@ __all__ = [
     "register_builtin_expert", "builtin_expert", "builtin_experts", "describe_policy", "start_episode",
     "verify_replay", "InitStates", "datasets_cache_dir", "expert_search_path",
     "task_key", "available_experts", "available_snapshot_sets", "find_expert", "find_snapshots", "load_policy",
-    "episode_seeds", "rollout", "record_episode", "assemble_episodes", "replay_episode", "generation_env", "cached_rollouts", "init_states_path",
+    "episode_seeds", "rollout", "rollout_episode", "assemble_episodes", "replay_episode", "generation_env",
+    "cached_rollouts", "init_states_path",
     "perfect_provider", "create_preference_sets", "preference_provider", "episode_levels", "transition_levels",
     "dataset_init_state_sampler",
 ]

@@ -2,7 +2,7 @@
 
 Generating a dataset is one simulator step and one policy call per transition, in one Python thread: 100
 Humanoid episodes took ~4.5 min on one core of a 16-core machine. Each episode depends only on its reset seed
-(`record_episode`), so episodes can be recorded by separate processes, each with its own env of the task, and
+(`rollout_episode`), so episodes can be recorded by separate processes, each with its own env of the task, and
 put back in seed order: the result is the same data as one process gives, which the tests check exactly.
 
 Workers are started with ``spawn`` (a fork of a process that already ran torch or MuJoCo threads is not
@@ -19,7 +19,7 @@ import pickle
 from concurrent.futures import ProcessPoolExecutor
 from typing import Any, Callable, Mapping, Sequence
 
-from loco_il.datasets.providers.expert import record_episode
+from loco_il.datasets.providers.expert import rollout_episode
 
 _ENV: Any = None        # the worker process's env and policy (set once by _start_worker)
 _POLICY: Any = None
@@ -42,13 +42,13 @@ def _start_worker(task_id: str, policy_bytes: bytes, horizon: int, shape: tuple[
 
 def _record(job: tuple[int, int]) -> dict[str, Any]:
     index, seed = job
-    return record_episode(_ENV, _POLICY, seed, _HORIZON, index)
+    return rollout_episode(_ENV, _POLICY, seed, _HORIZON, index)
 
 
 def record_in_workers(env: Any, policy: Any, seeds: Sequence[int], horizon: int, workers: int, *,
                       on_episode: Callable[[int, Mapping[str, Any]], None] | None = None,
                       log: Callable[[str], None] | None = None) -> list[dict[str, Any]] | None:
-    """`record_episode` for every seed, in up to ``workers`` processes; the episodes in seed order, or None
+    """`rollout_episode` for every seed, in up to ``workers`` processes; the episodes in seed order, or None
     (after saying why through ``log``) when the policy cannot be sent to another process: the caller then
     records them itself. ``on_episode(i, episode)`` is called in order as they arrive (progress output)."""
     try:
