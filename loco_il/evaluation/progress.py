@@ -17,6 +17,9 @@ A run that never gets there is given its best score and where. Runs trained with
 get a second line for each, the moving average of the actor (`normalized_score_ema`), marked "actor average".
 `--upto STEP` keeps only the evaluations at or before STEP in the curves and the stability lines, so that runs
 of different lengths (two settings, or a seed stopped early) are compared over the same env steps.
+With `--stability`, each task and algorithm run with several seeds also gets one line over its seeds: how many
+reached the threshold and where, the evaluations after the first one at it that score at or above it again,
+pooled over the seeds ("held"), and the same over the last 50k env steps of each seed.
 """
 from __future__ import annotations
 
@@ -153,6 +156,49 @@ def format_stability(row: dict[str, Any], threshold: float, key: str = "curve") 
     return line
 
 
+#: env steps at the end of each seed that `summarize_seeds` scores apart (the README's "last 50k" column)
+LAST_WINDOW = 50_000
+
+
+def summarize_seeds(rows: list[dict[str, Any]], threshold: float,
+                    last_window: int = LAST_WINDOW) -> dict[str, Any]:
+    """One setting (task and algorithm) over its seeds' rows: `n_seeds`, the range of their last scored steps
+    (`last_steps`), the steps where each reached the threshold first (`reached`, sorted; seeds that never did
+    are left out), the evaluations after those (`n_after`) and how many score >= threshold (`n_held`), pooled
+    over the seeds, and over each seed's evaluations in its last `last_window` env steps (those after
+    last step - last_window): `n_last`, `n_last_held`; `best` is the best score of any seed."""
+    per_seed = [stability(row["curve"], threshold) for row in rows]
+    scored = [[(step, x) for step, x in row["curve"] if x is not None] for row in rows]
+    ends = [curve[-1][0] for curve in scored if curve]
+    last = [x for curve in scored if curve for step, x in curve if step > curve[-1][0] - last_window]
+    return {"n_seeds": len(rows), "last_steps": (min(ends), max(ends)) if ends else None,
+            "reached": sorted(st["reached"] for st in per_seed if st["reached"] is not None),
+            "n_after": sum(st["n_after"] for st in per_seed), "n_held": sum(st["n_held"] for st in per_seed),
+            "n_last": len(last), "n_last_held": sum(x >= threshold for x in last),
+            "best": max((st["best"] for st in per_seed if st["best"] is not None), default=None)}
+
+
+def _k_range(lo: int, hi: int) -> str:
+    return f"{lo / 1000:g}k" if lo == hi else f"{lo / 1000:g}k-{hi / 1000:g}k"
+
+
+def format_seeds_summary(rows: list[dict[str, Any]], threshold: float, last_window: int = LAST_WINDOW) -> str:
+    """`task algorithm, 4 seeds to 300k: 4 reached >= 0.9 (first at 65k-115k); held 148/172 (86 %); last 50k
+    of each: 38/40 >= 0.9`."""
+    sm = summarize_seeds(rows, threshold, last_window)
+    head = f"{rows[0]['task']} {rows[0]['algorithm']}, {sm['n_seeds']} seeds"
+    if sm["last_steps"] is None:
+        return f"{head}: no evaluation yet"
+    head += f" to {_k_range(*sm['last_steps'])}: "
+    if not sm["reached"]:
+        return head + f"none reached >= {threshold:g} (best {sm['best']:.3f})"
+    held = "" if not sm["n_after"] else f" ({100 * sm['n_held'] / sm['n_after']:.0f} %)"
+    first = _k_range(sm["reached"][0], sm["reached"][-1])
+    return (head + f"{len(sm['reached'])} reached >= {threshold:g} (first at {first}); "
+            f"held {sm['n_held']}/{sm['n_after']}{held}; last {last_window / 1000:g}k of each: "
+            f"{sm['n_last_held']}/{sm['n_last']} >= {threshold:g}")
+
+
 def upto(row: dict[str, Any], step: int) -> dict[str, Any]:
     """The row with its curves (and fall counts) cut to the evaluations at or before `step`."""
     cut = dict(row)
@@ -202,6 +248,16 @@ def main(argv: list[str] | None = None) -> int:
         for row in rows:
             for key in _curve_keys(row):
                 print(format_stability(row, args.stability, key))
+        settings: dict[tuple[str, str], list[dict[str, Any]]] = {}
+        for row in rows:
+            settings.setdefault((row["task"], str(row["algorithm"])), []).append(row)
+        several = [group for group in settings.values() if len(group) > 1]
+        if several:
+            cut = "" if args.upto is None else f"evaluations up to {args.upto / 1000:g}k; "
+            print(f"\nover the seeds of each setting ({cut}held: the evaluations after each seed's first "
+                  f">= {args.stability:g}, pooled):")
+            for group in several:
+                print(format_seeds_summary(group, args.stability))
     return 0
 
 

@@ -12,12 +12,12 @@ from loco_il.experiment.logging import CSV_COLUMNS
 
 
 def make_run(root: Path, algo: str, budget: int, rows: list[tuple],
-             finished: bool = False) -> Path:
+             finished: bool = False, seed: int = 0) -> Path:
     """A run dir as train.py leaves it; rows = (step, steps/s, eval return, normalized score[, episodes that
     ended in a terminal state, of 5]); a row without the fifth entry leaves the column empty (older logs)."""
-    run = root / "Hopper.run.perfect" / algo / "seed0"
+    run = root / "Hopper.run.perfect" / algo / f"seed{seed}"
     (run / ".hydra").mkdir(parents=True)
-    cfg = {"task_id": "Hopper.run.perfect", "name": algo, "seed": 0, "n_steps": budget}
+    cfg = {"task_id": "Hopper.run.perfect", "name": algo, "seed": seed, "n_steps": budget}
     (run / "config.yaml").write_text(yaml.safe_dump(cfg))
     (run / ".hydra" / "config.yaml").write_text("task_id: ${hydra:runtime.choices.task}\nn_steps: 1\n")
     with open(run / "log.csv", "w", newline="") as fh:
@@ -149,3 +149,34 @@ def test_upto_compares_runs_over_the_same_env_steps(tmp_path, capsys):
     assert "| Hopper.run.perfect | lsiq | 0 | 100000 |" in out      # the table still shows where the run is
     assert progress.main([str(tmp_path), "--stability", "0.9"]) == 0
     assert "lsiq seed 0: >= 0.9 first at 100k; after it 0 evaluations" in capsys.readouterr().out
+
+
+def test_seeds_of_a_setting_are_summarized_together(tmp_path, capsys):
+    """--stability adds one line per task and algorithm with several seeds: the held evaluations pooled over the
+    seeds (each counted after its own first >= threshold), the last 50k env steps of each seed, and the best score
+    of a setting that never got there; a setting with one seed gets no such line."""
+    make_run(tmp_path, "lsiq", 1_500_000, [(50_000, 1, 0, 0.95), (100_000, 1, 0, 0.5), (150_000, 1, 0, 0.92),
+                                           (200_000, 1, 0, 0.91)], seed=1)
+    make_run(tmp_path, "lsiq", 1_500_000, [(50_000, 1, 0, 0.2), (100_000, 1, 0, 0.2), (150_000, 1, 0, 0.93),
+                                           (160_000, 1, 0, 0.899), (170_000, 1, 0, None)], seed=2)
+    make_run(tmp_path, "sqil", 1_500_000, [(50_000, 1, 0, 0.3), (100_000, 1, 0, 0.45)], seed=1)
+    make_run(tmp_path, "sqil", 1_500_000, [(50_000, 1, 0, 0.41)], seed=2)
+    make_run(tmp_path, "gail", 1_500_000, [(50_000, 1, 0, 0.99)], seed=1)
+    rows = [r for r in progress.collect_progress(tmp_path) if r["algorithm"] == "lsiq"]
+    sm = progress.summarize_seeds(rows, 0.9)
+    # seed 1: after 50k, 2 of 3 held; seed 2: after 150k, 0 of 1 (the unscored 170k is left out)
+    assert (sm["reached"], sm["n_after"], sm["n_held"]) == ([50_000, 150_000], 4, 2)
+    # last 50k, after each seed's last scored step - 50k: seed 1's 200k (0.91), seed 2's 150k (0.93) and 160k (0.899)
+    assert (sm["n_last"], sm["n_last_held"], sm["last_steps"]) == (3, 2, (160_000, 200_000))
+
+    assert progress.main([str(tmp_path), "--stability", "0.9"]) == 0
+    out = capsys.readouterr().out
+    assert ("Hopper.run.perfect lsiq, 2 seeds to 160k-200k: 2 reached >= 0.9 (first at 50k-150k); held 2/4 (50 %); "
+            "last 50k of each: 2/3 >= 0.9\n") in out
+    assert "Hopper.run.perfect sqil, 2 seeds to 50k-100k: none reached >= 0.9 (best 0.450)\n" in out
+    assert "gail, " not in out
+    assert progress.main([str(tmp_path), "--stability", "0.9", "--upto", "100000"]) == 0
+    out = capsys.readouterr().out
+    assert "over the seeds of each setting (evaluations up to 100k; held:" in out
+    assert ("Hopper.run.perfect lsiq, 2 seeds to 100k: 1 reached >= 0.9 (first at 50k); held 0/1 (0 %); "
+            "last 50k of each: 0/2 >= 0.9") in out
