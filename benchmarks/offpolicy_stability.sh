@@ -18,10 +18,11 @@ PYTHON=${PYTHON:-python}
 SMALL="policy.hidden=[64,64] critic_hidden=[64,64] batch_size=128 expert_batch_size=128 initial_replay_size=500
        replay_capacity=20000 critic_lr=1e-3 actor_lr=3e-4 tau=0.02 init_alpha=0.01 learn_alpha=false"
 declare -A ALGO=([iqlearn]=iqlearn [lsiq]=lsiq [lsiq_mixture]=lsiq [lsiq_no_absorbing]=lsiq [sqil]=sqil
-           [sqil_learned_alpha]=sqil)
+           [sqil_learned_alpha]=sqil [iqlearn_ln]=iqlearn [sqil_ln]=sqil)
 declare -A EXTRA=([iqlearn]="" [lsiq]="" [lsiq_mixture]="objective=mixture" [lsiq_no_absorbing]="treat_absorbing=false"
-                  [sqil]="" [sqil_learned_alpha]="learn_alpha=true")  # SAC's temperature tuning from 0.01
-ORDER=(lsiq iqlearn lsiq_mixture lsiq_no_absorbing sqil sqil_learned_alpha)
+                  [sqil]="" [sqil_learned_alpha]="learn_alpha=true"  # SAC's temperature tuning from 0.01
+                  [iqlearn_ln]="critic_layer_norm=true" [sqil_ln]="critic_layer_norm=true")  # LayerNorm critics
+ORDER=(lsiq iqlearn lsiq_mixture lsiq_no_absorbing sqil sqil_learned_alpha iqlearn_ln sqil_ln)
 VARIANTS=("$@")
 [ ${#VARIANTS[@]} -eq 0 ] && VARIANTS=("${ORDER[@]}")
 
