@@ -185,8 +185,17 @@ def _k_range(lo: int, hi: int) -> str:
 def format_seeds_summary(rows: list[dict[str, Any]], threshold: float, last_window: int = LAST_WINDOW) -> str:
     """`task algorithm, 4 seeds to 300k: 4 reached >= 0.9 (first at 65k-115k); held 148/172 (86 %); last 50k
     of each: 38/40 >= 0.9`."""
+    head = f"{rows[0]['task']} {rows[0]['algorithm']}"
+    # a run dir copied elsewhere below the root (runs/ and its committed logs) would otherwise count twice
+    seeds = [str(row["seed"]) for row in rows]
+    repeated = sorted({seed for seed in seeds if seeds.count(seed) > 1})
+    if repeated:
+        dirs = ", ".join(row["run_dir"] for row in rows if str(row["seed"]) in repeated)
+        which = f"seed {repeated[0]} is" if len(repeated) == 1 else f"seeds {', '.join(repeated)} are"
+        return (f"{head}: not pooled, {which} in several run dirs ({dirs}); "
+                "point progress at a folder holding one copy of each")
     sm = summarize_seeds(rows, threshold, last_window)
-    head = f"{rows[0]['task']} {rows[0]['algorithm']}, {sm['n_seeds']} seeds"
+    head += f", {sm['n_seeds']} seeds"
     if sm["last_steps"] is None:
         return f"{head}: no evaluation yet"
     head += f" to {_k_range(*sm['last_steps'])}: "

@@ -180,3 +180,9 @@ def test_seeds_of_a_setting_are_summarized_together(tmp_path, capsys):
     assert "over the seeds of each setting (evaluations up to 100k; held:" in out
     assert ("Hopper.run.perfect lsiq, 2 seeds to 100k: 1 reached >= 0.9 (first at 50k); held 0/1 (0 %); "
             "last 50k of each: 0/2 >= 0.9") in out
+    # the same seed twice below the root (a run dir and its copy) is not counted twice
+    make_run(tmp_path / "copy", "lsiq", 1_500_000, [(50_000, 1, 0, 0.95)], seed=1)
+    assert progress.main([str(tmp_path), "--stability", "0.9"]) == 0
+    out = capsys.readouterr().out
+    assert "Hopper.run.perfect lsiq: not pooled, seed 1 is in several run dirs (" in out
+    assert "lsiq, 2 seeds" not in out and "lsiq, 3 seeds" not in out
