@@ -28,7 +28,7 @@ import os
 import sys
 import time
 from pathlib import Path
-from typing import Any, Mapping
+from typing import IO, Any, Mapping
 
 from loco_il.utils.atomic import atomic_open
 
@@ -71,6 +71,16 @@ def read_jsonl(path: str | os.PathLike) -> list[dict]:
         except json.JSONDecodeError:
             continue
     return rows
+
+
+def _write_csv_rows(fh: IO[str], rows: list[Mapping[str, Any]], *, header: bool) -> None:
+    """Write `rows` as `CSV_COLUMNS` (missing -> empty) with the csv module's own line end, the one place that does:
+    appended rows and rows rewritten on resume must not end their lines differently."""
+    writer = csv.DictWriter(fh, fieldnames=CSV_COLUMNS, extrasaction="ignore")
+    if header:
+        writer.writeheader()
+    for row in rows:
+        writer.writerow({k: ("" if row.get(k) is None else row.get(k)) for k in CSV_COLUMNS})
 
 
 def read_csv(path: str | os.PathLike) -> list[dict]:
@@ -139,10 +149,7 @@ class RunLogger:
             fh.flush()
         new = not self.csv_path.is_file() or self.csv_path.stat().st_size == 0
         with open(self.csv_path, "a", newline="") as fh:
-            writer = csv.DictWriter(fh, fieldnames=CSV_COLUMNS, extrasaction="ignore")
-            if new:
-                writer.writeheader()
-            writer.writerow({k: ("" if row.get(k) is None else row.get(k)) for k in CSV_COLUMNS})
+            _write_csv_rows(fh, [row], header=new)
             fh.flush()
         if self._wandb is not None:
             data = {k: v for k, v in row.items() if isinstance(v, (int, float)) and v is not None and k != "step"}
@@ -161,13 +168,10 @@ class RunLogger:
             return next(csv.reader(fh), [])
 
     def _write_csv(self, rows: list[dict]) -> None:
-        buf = io.StringIO()
-        writer = csv.DictWriter(buf, fieldnames=CSV_COLUMNS, extrasaction="ignore", lineterminator="\n")
-        writer.writeheader()
-        for r in rows:
-            writer.writerow({k: ("" if r.get(k) is None else r.get(k)) for k in CSV_COLUMNS})
-        with atomic_open(self.csv_path, "w") as fh:
-            fh.write(buf.getvalue())
+        buf = io.StringIO(newline="")
+        _write_csv_rows(buf, rows, header=True)
+        with atomic_open(self.csv_path, "wb") as fh:   # bytes: the csv module's line ends stay as they are
+            fh.write(buf.getvalue().encode())
 
     def summary(self, values: Mapping[str, Any]) -> None:
         if self._wandb is not None:

@@ -28,3 +28,17 @@ def test_csv_written_by_an_older_version_is_rewritten_with_the_current_columns(t
     assert [r["step"] for r in read_csv(tmp_path / "log.csv")] == [100, 200, 300, 400]
     assert [json.loads(line)["step"] for line in (tmp_path / "log.jsonl").read_text().splitlines()] == [100, 200, 300, 400]
     assert json.loads((tmp_path / "log.jsonl").read_text().splitlines()[0])["fit/loss"] == 1.0
+
+
+def test_rows_rewritten_on_resume_end_their_lines_like_the_appended_ones(tmp_path):
+    # A resume truncates the logs to the checkpoint's step and rewrites log.csv; rows appended after it must not
+    # end their lines differently from the rewritten ones (a mixed file diffs as wholly changed).
+    logger = RunLogger(tmp_path, progress=False)
+    for step in (100, 200, 300):
+        logger.log({"step": step, "normalized_score": step / 1000})
+    logger.truncate(200)
+    RunLogger(tmp_path, progress=False).log({"step": 250, "normalized_score": 0.25})
+    lines = (tmp_path / "log.csv").read_bytes().splitlines(keepends=True)
+    assert len(lines) == 4                                        # header, 100, 200, 250
+    assert {line[-2:] for line in lines} == {b"\r\n"}             # the csv module's line end, on every line
+    assert [r["step"] for r in read_csv(tmp_path / "log.csv")] == [100, 200, 250]
