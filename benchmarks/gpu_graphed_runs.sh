@@ -8,7 +8,8 @@
 #                           by side for $LONG_S seconds, by default with the README's Hopper setting (mixture, twin
 #                           critic, LayerNorm), the same seeds and evaluation as the CPU runs in benchmarks/il_results/long_runs
 # ONLY_LONG=1 skips the tests and the speed runs. LONG_NAME and LONG_OVERRIDES give the long runs another LS-IQ
-# setting (an ablation; LONG_OVERRIDES="" runs LS-IQ's defaults), LONG_TASK another task (default
+# setting (an ablation; LONG_OVERRIDES="" runs LS-IQ's defaults), LONG_ALGO another SAC-based learner (default
+# lsiq; its LONG_OVERRIDES must then be that learner's: "" for its defaults), LONG_TASK another task (default
 # Hopper.run.perfect); END_BY=<s> stops them that many seconds after the script started, whatever LONG_S says, so
 # that one device call can spend all its time training and still return the logs.
 #
@@ -24,6 +25,7 @@ LONG_S=${LONG_S:-270}
 LONG_SEEDS=${LONG_SEEDS:-1 2}
 ONLY_LONG=${ONLY_LONG:-0}
 LONG_TASK=${LONG_TASK:-Hopper.run.perfect}
+LONG_ALGO=${LONG_ALGO:-lsiq}
 LONG_NAME=${LONG_NAME:-lsiq_mixture_2critics_ln_graph}
 LONG_OVERRIDES=${LONG_OVERRIDES-algo.params.objective=mixture algo.params.n_critics=2 algo.params.critic_layer_norm=true}
 END_BY=${END_BY:-}
@@ -61,11 +63,11 @@ if [[ $ONLY_LONG != 1 ]]; then   # after the dataset: each speed run has the mac
 fi
 
 if [[ -n $END_BY ]]; then LONG_S=$(( END_BY - SECONDS )); fi   # END_BY replaces LONG_S
-stamp "long runs: $LONG_TASK $LONG_NAME, seeds $LONG_SEEDS, ${LONG_S} s"
-# LS-IQ graphed (default: the README's Hopper setting), the seeds side by side (a run dir already in $RUNS resumes)
+stamp "long runs: $LONG_TASK $LONG_ALGO $LONG_NAME, seeds $LONG_SEEDS, ${LONG_S} s"
+# graphed runs of $LONG_ALGO (default: LS-IQ with the README's Hopper setting), the seeds side by side (a run dir already in $RUNS resumes)
 pids=()
 for seed in $LONG_SEEDS; do
-    timeout -s TERM "$LONG_S" $PY train.py task="$LONG_TASK" algo=lsiq seed="$seed" n_steps=1500000 \
+    timeout -s TERM "$LONG_S" $PY train.py task="$LONG_TASK" algo="$LONG_ALGO" seed="$seed" n_steps=1500000 \
         eval.every=5000 checkpoint_every=25000 results_dir="$RUNS" logger=csv device=cuda \
         algo.params.cuda_graph=true $LONG_OVERRIDES name="$LONG_NAME" > "$RUNS/seed$seed.out" 2>&1 &
     pids+=($!)

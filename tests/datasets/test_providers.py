@@ -355,6 +355,17 @@ def test_workers_record_the_same_episodes_in_seed_order():
     _assert_same_rollouts(*_rollout_both_ways("UnitreeA1.simple.perfect", trot, 3, 40))
 
 
+def test_workers_come_from_a_fork_server_and_spawned_workers_record_the_same(hopper_expert, monkeypatch):
+    """Linux starts the workers from a fork server that imported torch and loco_il once; the spawn start that
+    platforms without one use gives the same episodes too."""
+    from loco_il.datasets.providers import rollout_workers
+    assert rollout_workers.START_METHOD == "forkserver"          # the CI and development machines: Linux
+    assert rollout_workers._context().get_start_method() == "forkserver"
+    monkeypatch.setattr(rollout_workers, "START_METHOD", "spawn")
+    assert rollout_workers._context().get_start_method() == "spawn"
+    _assert_same_rollouts(*_rollout_both_ways("Hopper.run.perfect", hopper_expert, 3, 30))
+
+
 class _Unpicklable(LinearExpert):
     def __init__(self, *args):
         super().__init__(*args)
