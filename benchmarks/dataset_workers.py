@@ -62,8 +62,8 @@ def main(argv: list[str] | None = None) -> int:
                        for k in ("obs", "next_obs", "actions", "rewards", "absorbing", "last"))
             same = same and np.array_equal(init.qpos, base[1].qpos) and np.array_equal(init.qvel, base[1].qvel)
             same_everywhere &= same
-        print(f"{method:>10}  {workers:>9}  {seconds:>8.2f}  {args.episodes / seconds:>10.2f}  {base_time / seconds:>5.2f}x  "
-              f"{'yes' if same else 'NO'}")
+        print(f"{method:>10}  {workers:>9}  {seconds:>8.2f}  {args.episodes / seconds:>10.2f}  "
+              f"{base_time / seconds:>5.2f}x  {'yes' if same else 'NO'}")
     gen_env.stop()
     return 0 if same_everywhere else 1
 

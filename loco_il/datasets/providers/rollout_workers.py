@@ -2,9 +2,9 @@
 
 Generating a dataset is one simulator step and one policy call per transition, in one Python thread (one
 Humanoid episode of 1000 steps: ~0.8 s on a GPU machine's core, ~1.7 s on the busy 2-core development
-machine). Each episode depends only on its reset seed
-(`rollout_episode`), so episodes can be recorded by separate processes, each with its own env of the task, and
-put back in seed order: the result is the same data as one process gives, which the tests check exactly.
+machine). Each episode depends only on its reset seed (`rollout_episode`), so episodes can be recorded by
+separate processes, each with its own env of the task, and put back in seed order: the result is the same data
+as one process gives, which the tests check exactly.
 
 Workers are not forked from the calling process (a fork of a process that already ran torch or MuJoCo threads
 is not safe). Where the platform has it they come from a ``forkserver``: a fresh server process imports torch,
