@@ -47,7 +47,8 @@ def create_dataset(env: Any, n_trajectories: int | None = None, split: str | Non
         verbose: print generation progress.
         workers: processes that generate a rollout dataset's episodes (perfect, preference: the same
             data for any number); providers that roll out nothing ignore it. Scripts that pass > 1 must
-            start their work under ``if __name__ == "__main__":`` (worker processes are spawned).
+            start their work under ``if __name__ == "__main__":`` (workers start from a fork server, or
+            are spawned where there is none).
         provider_kwargs: passed on to the provider (e.g. to a `real` provider).
 
     Returns:
