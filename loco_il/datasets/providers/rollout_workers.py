@@ -8,8 +8,8 @@ as one process gives, which the tests check exactly.
 
 Workers are not forked from the calling process (a fork of a process that already ran torch or MuJoCo threads
 is not safe). Where the platform has it they come from a ``forkserver``: a fresh server process imports torch,
-mushroom-rl and loco_il once and forks each worker from itself, so the workers skip those imports (~5-7 s a
-process on the 2-core development machine; on a 16-core GPU machine 16 spawned workers took 34 s for 16
+mushroom-rl and loco_il once and forks each worker from itself, so the workers skip those imports (~7 s a
+process on the busy 2-core development machine; on a 16-core GPU machine 16 spawned workers took 34 s for 16
 Humanoid episodes that one process recorded in 13.5 s; `benchmarks/dataset_workers.py`). Elsewhere (Windows)
 they are spawned. Each builds the env from its Task-ID (``make(env.task_id)``: an env made with extra keyword
 arguments is not rebuilt the same way, and one whose observation or action size differs is refused), unpickles
