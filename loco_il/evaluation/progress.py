@@ -16,7 +16,9 @@ that score below the threshold had an episode end in a terminal state (a fall) a
 A run that never gets there is given its best score and where. Runs trained with `algo.params.actor_ema`
 get a second line for each, the moving average of the actor (`normalized_score_ema`), marked "actor average".
 `--upto STEP` keeps only the evaluations at or before STEP in the curves and the stability lines, so that runs
-of different lengths (two settings, or a seed stopped early) are compared over the same env steps.
+of different lengths (two settings, or a seed stopped early) are compared over the same env steps. `--every
+STEP` keeps only the evaluations at multiples of STEP, so that a run evaluated every 5k is read on the grid of one
+evaluated every 25k (counts of evaluations from different grids are not comparable: a coarse grid misses dips).
 With `--stability`, each task and algorithm run with several seeds also gets one line over its seeds: how many
 reached the threshold and where, the evaluations after the first one at it that score at or above it again,
 pooled over the seeds ("held"), and the same over the last 50k env steps of each seed.
@@ -26,7 +28,7 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 from loco_il.experiment.checkpoint import read_checkpoint_summary
 from loco_il.experiment.logging import read_csv
@@ -208,14 +210,31 @@ def format_seeds_summary(rows: list[dict[str, Any]], threshold: float, last_wind
             f"{sm['n_last_held']}/{sm['n_last']} >= {threshold:g}")
 
 
-def upto(row: dict[str, Any], step: int) -> dict[str, Any]:
-    """The row with its curves (and fall counts) cut to the evaluations at or before `step`."""
+def keep_evaluations(row: dict[str, Any], keep: Callable[[int], bool]) -> dict[str, Any]:
+    """The row with its curves (and fall counts) cut to the evaluations whose step `keep` accepts."""
     cut = dict(row)
     for key in ("curve", "curve_ema"):
         if row.get(key) is not None:
-            cut[key] = [(s, x) for s, x in row[key] if s <= step]
-    cut["terminated"] = {s: n for s, n in row.get("terminated", {}).items() if s <= step}
+            cut[key] = [(s, x) for s, x in row[key] if keep(s)]
+    cut["terminated"] = {s: n for s, n in row.get("terminated", {}).items() if keep(s)}
     return cut
+
+
+def upto(row: dict[str, Any], step: int) -> dict[str, Any]:
+    """The row with its curves (and fall counts) cut to the evaluations at or before `step`."""
+    return keep_evaluations(row, lambda s: s <= step)
+
+
+def on_grid(row: dict[str, Any], every: int) -> dict[str, Any]:
+    """The row with only the evaluations at multiples of `every` env steps."""
+    return keep_evaluations(row, lambda s: s % every == 0)
+
+
+def _selection_note(upto_step: int | None, every: int | None) -> str:
+    """Which evaluations the curves and stability lines use, for their headings ("" for all)."""
+    parts = ([] if every is None else [f"every {every / 1000:g}k"]) + \
+        ([] if upto_step is None else [f"up to {upto_step / 1000:g}k"])
+    return "" if not parts else "evaluations " + " ".join(parts)
 
 
 def _curve_keys(row: dict[str, Any]) -> tuple[str, ...]:
@@ -232,7 +251,11 @@ def main(argv: list[str] | None = None) -> int:
                         help="also print whether each run stays at or above this normalized score once reached")
     parser.add_argument("--upto", type=int, metavar="STEP",
                         help="curves and stability over the evaluations at or before this env step only")
+    parser.add_argument("--every", type=int, metavar="STEP",
+                        help="curves and stability over the evaluations at multiples of this env step only")
     args = parser.parse_args(argv)
+    if args.every is not None and args.every <= 0:
+        parser.error(f"--every must be a positive number of env steps, got {args.every}")
     if not Path(args.root).is_dir():
         print(f"error: {args.root} is not a folder", file=sys.stderr)
         return 2
@@ -246,14 +269,17 @@ def main(argv: list[str] | None = None) -> int:
           "again); n/a for finished runs and runs without checkpoint.json.")
     if args.upto is not None:
         rows = [upto(row, args.upto) for row in rows]
-    upto_note = "" if args.upto is None else f" (evaluations up to {args.upto / 1000:g}k)"
+    if args.every is not None:
+        rows = [on_grid(row, args.every) for row in rows]
+    selection = _selection_note(args.upto, args.every)
+    selection_note = f" ({selection})" if selection else ""
     if args.curves:
-        print(f"\nnormalized score at each evaluation{upto_note}:")
+        print(f"\nnormalized score at each evaluation{selection_note}:")
         for row in rows:
             for key in _curve_keys(row):
                 print(format_curve(row, key))
     if args.stability is not None:
-        print(f"\nonce at >= {args.stability:g}, does it stay?{upto_note}")
+        print(f"\nonce at >= {args.stability:g}, does it stay?{selection_note}")
         for row in rows:
             for key in _curve_keys(row):
                 print(format_stability(row, args.stability, key))
@@ -262,7 +288,7 @@ def main(argv: list[str] | None = None) -> int:
             settings.setdefault((row["task"], str(row["algorithm"])), []).append(row)
         several = [group for group in settings.values() if len(group) > 1]
         if several:
-            cut = "" if args.upto is None else f"evaluations up to {args.upto / 1000:g}k; "
+            cut = f"{selection}; " if selection else ""
             print(f"\nover the seeds of each setting ({cut}held: the evaluations after each seed's first "
                   f">= {args.stability:g}, pooled):")
             for group in several:

@@ -5,6 +5,7 @@ import csv
 import json
 from pathlib import Path
 
+import pytest
 import yaml
 
 from loco_il.evaluation import progress
@@ -149,6 +150,33 @@ def test_upto_compares_runs_over_the_same_env_steps(tmp_path, capsys):
     assert "| Hopper.run.perfect | lsiq | 0 | 100000 |" in out      # the table still shows where the run is
     assert progress.main([str(tmp_path), "--stability", "0.9"]) == 0
     assert "lsiq seed 0: >= 0.9 first at 100k; after it 0 evaluations" in capsys.readouterr().out
+
+
+def test_every_reads_a_run_on_a_coarser_evaluation_grid(tmp_path, capsys):
+    """--every keeps only the evaluations at multiples of a step (a 5k-evaluated run read on a 25k grid): the dips
+    between the grid points and their falls leave the curve and the stability line; it combines with --upto."""
+    make_run(tmp_path, "sqil", 1_500_000, [(20_000, 1, 0, 0.4, 5), (25_000, 1, 0, 0.95, 0), (30_000, 1, 0, 0.5, 3),
+                                           (45_000, 1, 0, 0.6, 2), (50_000, 1, 0, 0.97, 0), (75_000, 1, 0, 0.73, 1)])
+    assert progress.main([str(tmp_path), "--curves", "--stability", "0.9", "--every", "25000"]) == 0
+    out = capsys.readouterr().out
+    assert "normalized score at each evaluation (evaluations every 25k):\nHopper.run.perfect sqil seed 0: " \
+           "25k:0.95 50k:0.97 75k:0.73\n" in out
+    assert ("sqil seed 0: >= 0.9 first at 25k; after it 2 evaluations, 50 % >= 0.9, min 0.730, mean 0.85; of the 1 "
+            "below it, 1 had an episode end in a fall (1 of 5 episodes)") in out
+    assert progress.main([str(tmp_path), "--stability", "0.9", "--every", "25000", "--upto", "50000"]) == 0
+    out = capsys.readouterr().out
+    assert "does it stay? (evaluations every 25k up to 50k)" in out
+    assert "sqil seed 0: >= 0.9 first at 25k; after it 1 evaluations, 100 % >= 0.9" in out
+    assert progress.main([str(tmp_path), "--stability", "0.9"]) == 0      # all of them: the dips count
+    assert "after it 4 evaluations, 25 % >= 0.9" in capsys.readouterr().out
+
+
+def test_every_rejects_a_step_that_is_not_positive(tmp_path, capsys):
+    make_run(tmp_path, "sqil", 1_500_000, [(25_000, 1, 0, 0.95)])
+    with pytest.raises(SystemExit) as stop:
+        progress.main([str(tmp_path), "--every", "0"])
+    assert stop.value.code == 2
+    assert "--every must be a positive number of env steps, got 0" in capsys.readouterr().err
 
 
 def test_seeds_of_a_setting_are_summarized_together(tmp_path, capsys):
