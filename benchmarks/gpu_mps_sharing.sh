@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
 # Do several graphed training runs share one GPU better under CUDA's multi-process service (MPS)? (issue #5;
-# results in benchmarks/RESULTS.md, "Graphed runs sharing one GPU under MPS".) Without MPS the GPU time-slices
-# between the runs' processes, and four graphed runs made less in sum than two ("Whole graphed runs", twenty-seventh
-# session). This times the same group of runs twice in one call, first without MPS, then with an MPS server
-# started here, with benchmarks/train_speed.py, and writes both tables to $OUT/mps_sharing.txt.
+# results in benchmarks/RESULTS.md, "Four graphed runs sharing one GPU under MPS".) Without MPS the GPU
+# time-slices between the runs' processes, and four graphed runs made less in sum than two ("Whole graphed runs",
+# twenty-seventh session). This times the same group of runs twice in one call, first without MPS, then with an
+# MPS server started here (benchmarks/mps.sh), with benchmarks/train_speed.py, and writes both tables to
+# $OUT/mps_sharing.txt.
 #
 #     OUT=/tmp/out RUNS_SIDE_BY_SIDE=4 SPEED_S=45 ALGO=sqil bash benchmarks/gpu_mps_sharing.sh
 #
@@ -32,25 +33,10 @@ speed() {  # speed LABEL: N graphed runs side by side, SPEED_S seconds
 stamp "start; $(nvidia-smi --query-gpu=name,driver_version --format=csv,noheader 2>/dev/null)"
 speed "without MPS"
 
-# MPS: a control daemon per machine; clients find it through the pipe directory (writable dirs, since the
-# driver's folder may be a read-only mount). Each step has a timeout, so a machine without MPS costs seconds.
-export CUDA_MPS_PIPE_DIRECTORY=/tmp/mps_pipe CUDA_MPS_LOG_DIRECTORY=/tmp/mps_log
-mkdir -p "$CUDA_MPS_PIPE_DIRECTORY" "$CUDA_MPS_LOG_DIRECTORY"
-stop_mps() { echo quit | timeout 20 nvidia-cuda-mps-control >/dev/null 2>&1; }
-if ! command -v nvidia-cuda-mps-control >/dev/null; then
-    stamp "MPS: nvidia-cuda-mps-control not found on PATH"; exit 3
-fi
-if ! timeout 30 nvidia-cuda-mps-control -d >> "$report" 2>&1; then
-    stamp "MPS: the control daemon did not start"; exit 3
-fi
-# one client first: under MPS the server starts with the first CUDA context
-if ! timeout 90 $PY -c "import torch; x = torch.ones(1024, device='cuda'); print('MPS client ok', float((x @ x).item()))" \
-        >> "$report" 2>&1; then
-    stamp "MPS: a CUDA client failed under the server; stopping it"
-    tail -n 20 "$CUDA_MPS_LOG_DIRECTORY"/*.log >> "$report" 2>/dev/null
-    stop_mps; exit 3
-fi
-stamp "MPS: server up ($(echo get_server_list | timeout 10 nvidia-cuda-mps-control 2>&1 | tr '\n' ' '))"
+source "$(dirname "$0")/mps.sh"   # start_mps, stop_mps
+start_mps >> "$report" 2>&1; rc=$?
+stamp "$(grep '^MPS:' "$report" | tail -n 1)"
+if [[ $rc != 0 ]]; then exit 3; fi
 speed "with MPS"
 if [[ $KEEP_MPS != 1 ]]; then stop_mps; stamp "MPS stopped"; fi
 echo "export CUDA_MPS_PIPE_DIRECTORY=$CUDA_MPS_PIPE_DIRECTORY CUDA_MPS_LOG_DIRECTORY=$CUDA_MPS_LOG_DIRECTORY"

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import importlib.util
 import re
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -110,3 +111,49 @@ def test_train_speed_groups_and_interval_rates(tmp_path):
     # 1000-2000 ended with the first update (mostly replay filling): only the intervals after it count
     assert speed.interval_rates(log) == [60.0, 58.0]
     assert speed.interval_rates(tmp_path / "missing.csv") == []
+
+
+def run_start_mps(tmp_path, control: str | None, client_ok: bool = True) -> tuple[int, str, str]:
+    """Source benchmarks/mps.sh and call start_mps with fake tools only on PATH: `control` is the body of a fake
+    nvidia-cuda-mps-control (None: none on PATH), the fake python's client exits 0 or 1. Returns the exit status,
+    the output and what the fake control was called with (arguments and stdin, one call per line)."""
+    tools = tmp_path / "tools"
+    tools.mkdir()
+    for name in ("timeout", "mkdir", "tail", "tr", "cat"):
+        (tools / name).symlink_to(shutil.which(name))
+    calls = tmp_path / "calls.txt"
+    if control is not None:
+        fake = tools / "nvidia-cuda-mps-control"
+        fake.write_text(f'#!/bin/bash\n[ -t 0 ] || stdin=$(cat)\necho "$* ${{stdin:-}}" >> {calls}\n{control}\n')
+        fake.chmod(0o755)
+    python = tools / "fake-python"
+    python.write_text(f"#!/bin/bash\nexit {0 if client_ok else 1}\n")
+    python.chmod(0o755)
+    env = {"PATH": str(tools), "PYTHON": str(python), "CUDA_MPS_PIPE_DIRECTORY": str(tmp_path / "pipe"),
+           "CUDA_MPS_LOG_DIRECTORY": str(tmp_path / "log")}
+    done = subprocess.run([shutil.which("bash"), "-c", f"source {BENCHMARKS / 'mps.sh'}; start_mps"], env=env,
+                          capture_output=True, text=True, timeout=60)
+    return done.returncode, done.stdout + done.stderr, calls.read_text() if calls.exists() else ""
+
+
+def test_start_mps_without_the_control_program_returns_3_and_says_so(tmp_path):
+    status, out, _ = run_start_mps(tmp_path, control=None)
+    assert status == 3 and "nvidia-cuda-mps-control not found" in out, out
+
+
+def test_start_mps_stops_the_server_when_a_cuda_client_fails_under_it(tmp_path):
+    status, out, calls = run_start_mps(tmp_path, control="exit 0", client_ok=False)
+    assert status == 3 and "a CUDA client failed" in out, out
+    assert calls.split("\n")[0].strip() == "-d" and "quit" in calls, calls   # started, then told to quit
+    assert (tmp_path / "pipe").is_dir() and (tmp_path / "log").is_dir()
+
+
+def test_start_mps_reports_the_server_when_a_client_runs(tmp_path):
+    status, out, calls = run_start_mps(tmp_path, control='[ "$1" = -d ] || echo 4242')
+    assert status == 0 and "MPS: server up (4242 )" in out, out
+    assert "quit" not in calls, calls
+
+
+def test_start_mps_returns_3_when_the_daemon_does_not_start(tmp_path):
+    status, out, calls = run_start_mps(tmp_path, control="exit 1")
+    assert status == 3 and "did not start" in out and calls.strip() == "-d", (out, calls)
