@@ -124,7 +124,7 @@ def run_start_mps(tmp_path, control: str | None, client_ok: bool = True) -> tupl
     calls = tmp_path / "calls.txt"
     if control is not None:
         fake = tools / "nvidia-cuda-mps-control"
-        fake.write_text(f'#!/bin/bash\n[ -t 0 ] || stdin=$(cat)\necho "$* ${{stdin:-}}" >> {calls}\n{control}\n')
+        fake.write_text(f'#!/bin/bash\nstdin=$(cat)\necho "$* ${{stdin:-}}" >> {calls}\n{control}\n')
         fake.chmod(0o755)
     python = tools / "fake-python"
     python.write_text(f"#!/bin/bash\nexit {0 if client_ok else 1}\n")
@@ -132,7 +132,7 @@ def run_start_mps(tmp_path, control: str | None, client_ok: bool = True) -> tupl
     env = {"PATH": str(tools), "PYTHON": str(python), "CUDA_MPS_PIPE_DIRECTORY": str(tmp_path / "pipe"),
            "CUDA_MPS_LOG_DIRECTORY": str(tmp_path / "log")}
     done = subprocess.run([shutil.which("bash"), "-c", f"source {BENCHMARKS / 'mps.sh'}; start_mps"], env=env,
-                          capture_output=True, text=True, timeout=60)
+                          stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=60)
     return done.returncode, done.stdout + done.stderr, calls.read_text() if calls.exists() else ""
 
 
