@@ -23,6 +23,8 @@ export PYTHONUNBUFFERED=1 MUJOCO_GL=${MUJOCO_GL:-disable}
 mkdir -p "$OUT"
 report=$OUT/mps_sharing.txt
 stamp() { echo "[gpu_mps_sharing $(date +%T)] $*" | tee -a "$report" >&2; }
+# a small dataset and an early first update (the speed depends on neither); the LayerNorm critic of the SQIL runs
+# trained under MPS afterwards
 small="dataset.n_episodes=12 algo.params.initial_replay_size=1000 algo.params.cuda_graph=true algo.params.critic_layer_norm=true"
 speed() {  # speed LABEL: N graphed runs side by side, SPEED_S seconds
     stamp "$1: $N graphed $ALGO runs side by side, ${SPEED_S} s"
