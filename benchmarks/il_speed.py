@@ -19,6 +19,10 @@ dynamics model every update.
 hidden layer of every critic head), each against the bare update with the same LayerNorm critic, and prints
 what the LayerNorm costs each agent (LN / plain update time, same process).
 
+`--unshared-forward` adds each agent as it was before the update shared the policy's forward at the batch's
+states between the critic's V(s) term and the actor step (rows '... unshared': the critic runs its own forward
+there; same numbers, one policy forward more per update), for an A/B of that change in one process.
+
 `--device cuda` runs the networks, replay memory and updates on the GPU (timed blocks end with
 `torch.cuda.synchronize()`); `--graphed-bare` adds the bare update replayed from a CUDA graph and the agents
 with `cuda_graph=True`, each against the graphed bare update of its shape (rows '... graph').
@@ -34,6 +38,7 @@ depend on its content; use it for tasks whose dataset is not cached, e.g. `--tas
     python benchmarks/il_speed.py [--updates 20 --reps 5] [--offpolicy ...] [--onpolicy gail vail gaifo]
                                   [--onpolicy-fits 6 --onpolicy-reps 3] [--task Hopper.run.perfect] [--random-expert]
                                   [--device cpu|cuda] [--compiled-bare] [--graphed-bare] [--critic-layer-norm]
+                                  [--unshared-forward]
     (an empty `--offpolicy` or `--onpolicy` skips that part)
 """
 from __future__ import annotations
@@ -144,7 +149,7 @@ def random_mdp_info() -> MDPInfo:
 
 
 def make_offpolicy_agent(name: str, n_replay: int, seed: int = 0, device: str = "cpu", cuda_graph: bool = False,
-                        critic_layer_norm: bool = False):
+                        critic_layer_norm: bool = False, unshared_forward: bool = False):
     cfg = load_cfg("lsiq" if name == "lsiqfo" else name)
     cfg["name"] = name
     cfg["params"]["replay_capacity"] = n_replay
@@ -161,6 +166,9 @@ def make_offpolicy_agent(name: str, n_replay: int, seed: int = 0, device: str = 
     agent.set_expert(expert)
     agent.replay.add(rng.standard_normal((n_replay, OBS_DIM)), rng.standard_normal((n_replay, OBS_DIM)),
                      (rng.random(n_replay) < 0.01).astype(np.float32), rng.uniform(-1, 1, (n_replay, ACT_DIM)))
+    if unshared_forward:  # the critic ignores the update's policy forward and runs its own (the code before sharing)
+        loss_of = type(agent).critic_loss
+        agent.critic_loss = lambda expert, policy, pi_obs=None: loss_of(agent, expert, policy)
     return agent
 
 
@@ -199,9 +207,10 @@ def compiled_bare_sac(n_replay: int, device: str = "cpu") -> BareSAC:
     return bare
 
 
-def row_name(name: str, layer_norm: bool = False, graphed: bool = False) -> str:
-    """A timed row's label: `name` plus the variant suffixes (' LN' LayerNorm critic, ' graph' CUDA graph)."""
-    return name + (" LN" if layer_norm else "") + (" graph" if graphed else "")
+def row_name(name: str, layer_norm: bool = False, graphed: bool = False, unshared: bool = False) -> str:
+    """A timed row's label: `name` plus the variant suffixes (' LN' LayerNorm critic, ' graph' CUDA graph,
+    ' unshared' the policy forward not shared)."""
+    return name + (" LN" if layer_norm else "") + (" graph" if graphed else "") + (" unshared" if unshared else "")
 
 
 def bare_name(n_critics: int, idm: bool = False, graphed: bool = False, layer_norm: bool = False) -> str:
@@ -210,14 +219,16 @@ def bare_name(n_critics: int, idm: bool = False, graphed: bool = False, layer_no
 
 
 def bench_offpolicy(names, updates: int, reps: int, with_compiled: bool = False,
-                    device: str = "cpu", with_graphed: bool = False, with_layer_norm: bool = False) -> dict[str, float]:
+                    device: str = "cpu", with_graphed: bool = False, with_layer_norm: bool = False,
+                    with_unshared: bool = False) -> dict[str, float]:
     """Median seconds per update of each agent and of the bare SAC update with the same critic (number of heads,
     LayerNorm or not; each agent's ratio is taken against that one), all on `device`."""
     n_replay = 20_000
-    variants = [(ln, g) for ln in (False, True)[:1 + with_layer_norm] for g in (False, True)[:1 + with_graphed]]
-    agents = {row_name(name, ln, g): make_offpolicy_agent(name, n_replay, device=device, cuda_graph=g,
-                                                          critic_layer_norm=ln)
-              for ln, g in variants for name in names}
+    variants = [(ln, g, u) for ln in (False, True)[:1 + with_layer_norm] for g in (False, True)[:1 + with_graphed]
+                for u in (False, True)[:1 + with_unshared]]
+    agents = {row_name(name, ln, g, u): make_offpolicy_agent(name, n_replay, device=device, cuda_graph=g,
+                                                             critic_layer_norm=ln, unshared_forward=u)
+              for ln, g, u in variants for name in names}
     # the bare update each agent is compared with: same critic, plus the IDM step where the agent has one
     shapes = {row: (agent.sac.critic.n_heads, hasattr(agent, "idm"), agent.cuda_graph,
                     any(isinstance(m, nn.LayerNorm) for m in agent.sac.critic.modules()))
@@ -262,6 +273,8 @@ def bench_offpolicy(names, updates: int, reps: int, with_compiled: bool = False,
             print(f"{name}: eager / graphed update time {med[name] / med[name + ' graph']:.2f}x")
         if with_layer_norm:
             print(f"{name}: LayerNorm / plain critic update time {med[name + ' LN'] / med[name]:.2f}x")
+        if with_unshared:
+            print(f"{name}: unshared / shared policy forward, update time {med[name + ' unshared'] / med[name]:.2f}x")
     return med
 
 
@@ -356,6 +369,9 @@ def main() -> None:
     parser.add_argument("--critic-layer-norm", action="store_true",
                         help="off-policy part: also time each agent with critic_layer_norm=True (rows '... LN') "
                              "against the bare update with the same LayerNorm critic")
+    parser.add_argument("--unshared-forward", action="store_true",
+                        help="off-policy part: also time each agent with the policy forward at the batch's states "
+                             "not shared between critic and actor (rows '... unshared'), an A/B of that change")
     parser.add_argument("--device", default="cpu", help="torch device of the networks and updates (cpu, cuda)")
     args = parser.parse_args()
     if torch.device(args.device).type == "cuda" and not torch.cuda.is_available():
@@ -368,7 +384,7 @@ def main() -> None:
     print(f"torch {torch.__version__}, threads {torch.get_num_threads()}, device {args.device}{gpu}")
     if args.offpolicy:
         bench_offpolicy(args.offpolicy, args.updates, args.reps, args.compiled_bare, args.device, args.graphed_bare,
-                        args.critic_layer_norm)
+                        args.critic_layer_norm, args.unshared_forward)
     if args.onpolicy:
         from loco_il import LocoEnv
         if args.random_expert:

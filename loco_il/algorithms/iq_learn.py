@@ -85,8 +85,8 @@ class IQLearn(OffPolicyILAgent):
         self.use_target = use_target
         self.regularize_policy = regularize_policy
 
-    def critic_loss(self, expert, policy):
-        c = self.critic_values(expert, policy, need_v=True, online_next=not self.use_target,
+    def critic_loss(self, expert, policy, pi_obs=None):
+        c = self.critic_values(expert, policy, need_v=True, online_next=not self.use_target, pi_obs=pi_obs,
                                v_on="expert" if self.value_loss == "v0" else "all")  # "v0" reads V on expert states only
         return iq_critic_loss(c["q"], c["v"], c["v_next"], c["absorbing"], c["n_expert"], self.gamma,
                               self.chi2_coef, self.regularize_policy, self.value_loss)

@@ -141,12 +141,13 @@ class LSIQ(OffPolicyILAgent):
         self.treat_absorbing, self.value_term = treat_absorbing, value_term
         self.objective = objective
 
-    def critic_loss(self, expert, policy):
+    def critic_loss(self, expert, policy, pi_obs=None):
         if self.objective == "fixed_expert":
-            c = self.critic_values(expert, policy, need_v=True, online_next=False, q_on="expert")
+            c = self.critic_values(expert, policy, need_v=True, online_next=False, q_on="expert", pi_obs=pi_obs)
             return lsiq_fixed_expert_loss(c["q"], c["v"], c["v_next"], c["absorbing"], c["n_expert"], self.gamma,
                                           self.reg_coef, self.mix, self.treat_absorbing)
-        c = self.critic_values(expert, policy, need_v=self.value_term, online_next=False, v_on="policy")
+        c = self.critic_values(expert, policy, need_v=self.value_term, online_next=False, v_on="policy",
+                               pi_obs=pi_obs)
         return lsiq_critic_loss(c["q"], c["v_next"], c["absorbing"], c["n_expert"], self.gamma,
                                 self.reg_coef, self.mix, self.treat_absorbing, c.get("v"))
 
@@ -179,7 +180,7 @@ class LSIQfO(LSIQ):
     def optimizers(self) -> list[torch.optim.Optimizer]:
         return [*super().optimizers(), self.idm_opt]
 
-    def critic_loss(self, expert, policy):
+    def critic_loss(self, expert, policy, pi_obs=None):
         for step in range(self.idm_steps_per_update):
             batch = policy if step == 0 else self.replay.sample(self.batch_size, self.rng)
             loss = idm_loss(self.idm, batch["obs"], batch["next_obs"], batch["actions"])
@@ -188,6 +189,6 @@ class LSIQfO(LSIQ):
             self.idm_opt.step()
         with torch.no_grad():
             labels = self.idm(torch.cat([expert["obs"], expert["next_obs"]], -1))
-        closs, info = super().critic_loss(dict(expert, actions=labels), policy)
+        closs, info = super().critic_loss(dict(expert, actions=labels), policy, pi_obs)
         info["idm_loss"] = loss.detach()
         return closs, info

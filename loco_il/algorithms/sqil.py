@@ -36,7 +36,7 @@ class SQIL(OffPolicyILAgent):
     display_name = "SQIL"
     supported_datasets = frozenset({"perfect", "preference"})
 
-    def critic_loss(self, expert, policy):
+    def critic_loss(self, expert, policy, pi_obs=None):  # pi_obs unused: SQIL's target needs no V(s)
         c = self.critic_values(expert, policy, need_v=False, online_next=False)
         n_e = c["n_expert"]
         rewards = sqil_rewards(n_e, c["q"].shape[-1] - n_e, self.device)

@@ -344,6 +344,49 @@ def test_gamma_outside_the_unit_interval_rejected(gamma):
         _agent(SQIL, gamma=gamma)
 
 
+# (class, options, rows of [expert; agent] states at which the critic reads V(s)), batches of 8 + 8
+SHARED_FORWARD_CASES = [(IQLearn, {}, 8), (IQLearn, {"value_loss": "value"}, 16),
+                        (LSIQ, {}, 16), (LSIQ, {"objective": "mixture"}, 8), (LSIQfO, {}, 16), (SQIL, {}, 0)]
+
+
+def _policy_rows_per_update(agent, n_updates=3):
+    """Rows run through the policy network per update, counted by a forward hook."""
+    rows = []
+    hook = agent.policy_module.net.register_forward_hook(lambda mod, inp, out: rows.append(len(inp[0])))
+    try:
+        for _ in range(n_updates):
+            agent.update()
+    finally:
+        hook.remove()
+    return sum(rows) / n_updates
+
+
+@pytest.mark.parametrize("cls, kw, v_rows", SHARED_FORWARD_CASES)
+def test_update_runs_the_policy_once_per_state_and_matches_the_unshared_update(cls, kw, v_rows):
+    """The critic's V(s) terms sample from the policy forward the actor step takes anyway (at the 16 states of the
+    batch), so an update runs the policy on 16 + 16 rows (states, next states) instead of 16 + v_rows + 16; and
+    the update is the same as when the critic runs its own forward (the code before the forward was shared)."""
+    shared, unshared = _agent(cls, **kw), _agent(cls, **kw)
+    loss_of = cls.critic_loss
+    unshared.critic_loss = lambda expert, policy, pi_obs=None: loss_of(unshared, expert, policy)
+    rows = {}
+    for agent in (shared, unshared):
+        torch.manual_seed(1)  # the same policy noise for both
+        agent.fit(_dataset(n=20))  # 16 for the initial replay, then 4 updates
+        rows[agent] = _policy_rows_per_update(agent)
+    assert rows[shared] == 32 and rows[unshared] == 32 + v_rows
+    for a, b in ((shared.policy_module, unshared.policy_module), (shared.sac.critic, unshared.sac.critic)):
+        for (name, p), q in zip(a.named_parameters(), b.parameters()):
+            torch.testing.assert_close(p, q, rtol=1e-6, atol=1e-7, msg=f"{cls.__name__} {kw}: {name} differs")
+    # the actor's states are the agent rows only, or the actor skips an update: no forward to share
+    agent = _agent(cls, **kw, actor_on_expert_states=False)
+    agent.fit(_dataset(n=16))
+    assert _policy_rows_per_update(agent) == 16 + v_rows + 8
+    agent = _agent(cls, **kw, actor_delay=2)
+    agent.fit(_dataset(n=16))  # 16 updates: the next one takes the actor step, the one after does not
+    assert [_policy_rows_per_update(agent, 1) for _ in range(2)] == [32, 16 + v_rows]
+
+
 def test_single_critic_actor_step_follows_its_only_head():
     """n_critics=1: the actor's loss is alpha log pi - Q of that critic (no minimum over heads); updates run."""
     agent = _agent(LSIQ, n_critics=1)

@@ -78,7 +78,11 @@ class GaussianPolicy(nn.Module):
 
     def sample(self, obs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """Reparameterized sample and its log-probability (summed over action dims)."""
-        mean, log_std = self._mean_log_std(obs)
+        return self.sample_from(*self._mean_log_std(obs))
+
+    def sample_from(self, mean: torch.Tensor, log_std: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """`sample` from a forward already taken (`_mean_log_std`): an update that needs actions at the same
+        states twice (the critic's V(s), then the actor step) runs the network once and draws twice."""
         std = log_std.exp()
         noise = torch.randn_like(mean)
         pre = mean + std * noise

@@ -127,16 +127,18 @@ class SACCore:
             nn.utils.clip_grad_norm_(self._critic_params, self.critic_grad_clip)
         self.critic_opt.step()
 
-    def actor_step(self, obs: torch.Tensor, bc: tuple[torch.Tensor, torch.Tensor, float] | None = None
-                   ) -> dict[str, torch.Tensor]:
+    def actor_step(self, obs: torch.Tensor, bc: tuple[torch.Tensor, torch.Tensor, float] | None = None,
+                   pi_obs: tuple[torch.Tensor, torch.Tensor] | None = None) -> dict[str, torch.Tensor]:
         """One actor step on the states `obs`, then (if learned) one temperature step.
 
         bc = (expert states, expert actions, alpha): TD3+BC's behaviour-cloning term (`bc_regularized_actor_loss`).
+        pi_obs: the policy's (mean, log_std) at `obs`, with gradient, when the caller already ran that forward
+        (the same numbers as running it here, since the policy has not moved since).
         """
         for p in self._critic_params:  # gradients only into the policy
             p.requires_grad_(False)
         try:
-            a, logp = self.policy.sample(obs)
+            a, logp = self.policy.sample(obs) if pi_obs is None else self.policy.sample_from(*pi_obs)
             q = self.critic(obs, a).amin(0)
             loss = actor_loss(self.alpha, logp, q)
             if bc is not None:
@@ -334,17 +336,22 @@ class OffPolicyILAgent(ILAgent):
         Free of host synchronisation, so that `cuda_graph=True` can capture it."""
         expert = self.expert_buffer.gather(expert_idx)
         policy = self.replay.gather(policy_idx)
-        loss, info = self.critic_loss(expert, policy)
+        take_actor_step = self.n_updates % self.actor_delay == 0
+        states = torch.cat([expert["obs"], policy["obs"]]) if self.actor_on_expert_states else policy["obs"]
+        # The policy's forward at the actor's states, once, with gradient: when those are all the batch's states,
+        # the critic's V(s) terms sample from it (detached) and the actor step after the critic step samples
+        # from it again with fresh noise (the policy has not moved in between). Saves one policy forward.
+        pi_states = self.policy_module._mean_log_std(states) if take_actor_step else None
+        loss, info = self.critic_loss(expert, policy, pi_states if self.actor_on_expert_states else None)
         if self.conservative_weight > 0.0:
             penalty = self.conservative_term(policy)
             loss = loss + self.conservative_weight * penalty
             info["conservative_penalty"] = penalty.detach()
         self.sac.critic_step(loss)
         info["critic_loss"] = loss.detach()
-        if self.n_updates % self.actor_delay == 0:
-            states = torch.cat([expert["obs"], policy["obs"]]) if self.actor_on_expert_states else policy["obs"]
+        if take_actor_step:
             bc = None if self.actor_bc_alpha is None else (expert["obs"], expert["actions"], self.actor_bc_alpha)
-            info.update(self.sac.actor_step(states, bc))
+            info.update(self.sac.actor_step(states, bc, pi_states))
             if self.policy_ema is not None:
                 with torch.no_grad():
                     torch._foreach_lerp_(*self._ema_pairs, self.actor_ema)
@@ -384,12 +391,17 @@ class OffPolicyILAgent(ILAgent):
         qs = self.sac.critic(obs.repeat(k + 1, 1), torch.cat([random_act, act]))  # (H, (K + 1) N), k-major
         return conservative_penalty(qs[:, :k * n].unflatten(1, (k, n)), qs[:, k * n:], self.conservative_hinge)
 
-    def critic_loss(self, expert: dict, policy: dict) -> tuple[torch.Tensor, dict]:
-        """The method-specific critic objective on one expert and one agent batch."""
+    def critic_loss(self, expert: dict, policy: dict, pi_obs: tuple[torch.Tensor, torch.Tensor] | None = None
+                    ) -> tuple[torch.Tensor, dict]:
+        """The method-specific critic objective on one expert and one agent batch.
+
+        pi_obs: the policy's (mean, log_std) at the states [expert; policy], if the update already has them
+        (passed on to `critic_values`); None: computed where needed."""
         raise NotImplementedError
 
     def critic_values(self, expert: dict, policy: dict, need_v: bool = True,
-                      online_next: bool = False, v_on: str = "all", q_on: str = "all") -> dict[str, torch.Tensor]:
+                      online_next: bool = False, v_on: str = "all", q_on: str = "all",
+                      pi_obs: tuple[torch.Tensor, torch.Tensor] | None = None) -> dict[str, torch.Tensor]:
         """Everything the implicit-reward losses need, with one policy and one critic forward.
 
         Returns, for the concatenation [expert; policy] of length N (first `n_expert` are expert), with H the
@@ -401,6 +413,9 @@ class OffPolicyILAgent(ILAgent):
           v_next (H, N)  V(s'): from the online heads (with grad) if online_next, else
                          min_i Q_target_i(s', a') - alpha log pi(a'|s') (no grad), repeated for every head
           absorbing (N,)
+        pi_obs: the policy's (mean, log_std) at the N states, e.g. with gradient for the actor step that follows
+        (used detached here): V(s) then needs the policy's forward at s' only. The actions drawn are the same
+        either way (one noise draw for the V rows and s' together, in that order).
         """
         n_e = len(expert["obs"])
         obs = torch.cat([expert["obs"], policy["obs"]])
@@ -417,8 +432,13 @@ class OffPolicyILAgent(ILAgent):
         q_obs, q_act = obs[q_rows], act[q_rows]
         n_q = len(q_obs)
         with torch.no_grad():  # sampled actions are constants for the critic loss
-            pol_obs = torch.cat([v_obs, next_obs]) if need_v else next_obs
-            a_pi, logp = self.policy_module.sample(pol_obs)
+            if need_v and pi_obs is not None:
+                rows = ROWS[v_on](n_e)
+                next_mean, next_log_std = self.policy_module._mean_log_std(next_obs)
+                a_pi, logp = self.policy_module.sample_from(torch.cat([pi_obs[0][rows], next_mean]),
+                                                           torch.cat([pi_obs[1][rows], next_log_std]))
+            else:
+                a_pi, logp = self.policy_module.sample(torch.cat([v_obs, next_obs]) if need_v else next_obs)
         crit_obs, crit_act = [q_obs], [q_act]
         if need_v:
             crit_obs.append(v_obs); crit_act.append(a_pi[:n_v])
