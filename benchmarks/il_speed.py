@@ -340,12 +340,15 @@ def bench_onpolicy(names, n_fits: int, reps: int, expert, task: str, device: str
     for k, v in med.items():
         print(f"{k:<10}{v:>10.0f}{v / base:>8.2f}")
     print(f"\nper env step: env.step {env_us:.0f} us (random actions, resets included)")
-    print(f"{'agent':<10}{'draw_action us':>16}{'fit us/step':>13}{'bound w/o fit':>15}")
+    print(f"{'agent':<10}{'draw_action us':>16}{'fit us/step':>13}{'bound w/o fit':>15}{'bound 2 cores':>15}")
     for name, a in act_us.items():
         total_us = 1e6 / med[name]
         fit_us = max(0.0, total_us - env_us - a)
-        print(f"{name:<10}{a:>16.0f}{fit_us:>13.0f}{env_us / (env_us + a):>15.2f}")
-    print("(fit us/step = 1/steps_per_s - env.step - draw_action; 'bound w/o fit' = the ratio a free fit would give)")
+        print(f"{name:<10}{a:>16.0f}{fit_us:>13.0f}{env_us / (env_us + a):>15.2f}"
+              f"{min(1.0, 2 * env_us / total_us):>15.2f}")
+    print("(fit us/step = 1/steps_per_s - env.step - draw_action; 'bound w/o fit' = the ratio a free fit would give;\n"
+          " 'bound 2 cores' = the ratio if all of this work were split perfectly over two cores, 2 env.step / "
+          "(1/steps_per_s))")
     print(f"goal 0.7x leaves {env_us * (1 / 0.7 - 1):.0f} us per env step for draw_action + fit + Core together")
     rows.append(med)
 

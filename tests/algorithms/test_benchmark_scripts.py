@@ -47,12 +47,13 @@ def test_q_gap_is_zero_or_less_at_the_critics_maximum_and_positive_away_from_it(
 
 def test_il_speed_runs_and_compares_each_agent_with_the_bare_update_of_its_critic():
     out = subprocess.run([sys.executable, str(BENCHMARKS / "il_speed.py"), "--updates", "1", "--reps", "1",
-                          "--offpolicy", "lsiq", "lsiqfo", "sqil", "--critic-layer-norm", "--onpolicy", "gail",
+                          "--offpolicy", "lsiq", "lsiqfo", "sqil", "--critic-layer-norm", "--unshared-forward",
+                          "--onpolicy", "gail",
                           "--onpolicy-fits", "1", "--onpolicy-reps", "1", "--random-expert"],
                          capture_output=True, text=True, timeout=300, check=True).stdout
     offpolicy, onpolicy = out.split("## Off-policy")[1].split("## On-policy")
     off_rows = {m[0]: (float(m[1]), m[2]) for m in
-                re.findall(r"^(\S+(?: SAC(?: \dQ)?(?:\+IDM)?)?(?: LN)?)\s+[\d.]+\s+([\d.]+)\s+"
+                re.findall(r"^(\S+(?: SAC(?: \dQ)?(?:\+IDM)?)?(?: LN)?(?: unshared)?)\s+[\d.]+\s+([\d.]+)\s+"
                            r"(bare SAC(?: \dQ)?(?:\+IDM)?(?: LN)?)$", offpolicy, re.M)}
     assert {"bare SAC", "lsiq", "lsiqfo", "sqil", "lsiq LN", "lsiqfo LN", "sqil LN"} <= set(off_rows), out
     # LSIQ-fO's inverse dynamics model is one network more: its baseline trains one too, and the ratio
@@ -65,12 +66,20 @@ def test_il_speed_runs_and_compares_each_agent_with_the_bare_update_of_its_criti
     assert off_rows["lsiqfo LN"][1] == "bare SAC 1Q+IDM LN" and off_rows["bare SAC LN"][1] == "bare SAC", out
     for name in ("lsiq", "lsiqfo", "sqil"):
         assert re.search(rf"^{name}: LayerNorm / plain critic update time [\d.]+x$", offpolicy, re.M), out
+        # --unshared-forward: the agent as before the policy forward was shared, against the same bare update
+        assert off_rows[f"{name} unshared"][1] == off_rows[name][1], out
+        assert re.search(rf"^{name}: unshared / shared policy forward, update time [\d.]+x$", offpolicy, re.M), out
     for name, (ratio, against) in off_rows.items():
         assert against in off_rows, out            # the bare update it is compared with was timed too
         if name == against:
             assert ratio == 1.0
     on_rows = dict(re.findall(r"^(\S+(?: env)?)\s+\d+\s+([\d.]+)$", onpolicy, re.M))
     assert float(on_rows["bare env"]) == 1.0 and 0 < float(on_rows["gail"]), out
+    # the breakdown: with all the work split perfectly over two cores the ratio would at most double
+    draw_us, fit_us, bound_free_fit, bound_two_cores = re.search(
+        r"^gail\s+(\d+)\s+(\d+)\s+([\d.]+)\s+([\d.]+)$", onpolicy, re.M).groups()
+    assert float(bound_two_cores) == pytest.approx(min(1.0, 2 * float(on_rows["gail"])), abs=0.011), out
+    assert float(on_rows["gail"]) <= float(bound_free_fit) <= 1.0, out
 
 
 def test_il_baselines_stability_summary_counts_the_evaluations_after_the_first_expert_level_one(tmp_path, capsys):
