@@ -7,8 +7,9 @@ equation numbers below are from memory of that paper and were not re-checked):
   * actor loss  J_pi = E_s[ alpha log pi(a~|s) - min_i Q_i(s, a~) ],  a~ reparameterized (Eq. 7, 11)
   * temperature J(alpha) = E_a~pi[ -alpha (log pi(a|s) + target_entropy) ], target = -|A|   (Eq. 18)
 The IL methods differ only in the critic objective, so `OffPolicyILAgent` asks its subclass for
-`critic_loss(expert_batch, policy_batch)` and does everything else (replay, actor, temperature,
-target network) itself.
+`critic_loss(expert_batch, policy_batch, pi_obs)` and does everything else (replay, actor, temperature,
+target network) itself; `pi_obs` is the policy's forward at the batch's states, taken once per update for
+the critic's V(s) and the actor step (see `_update_step`).
 """
 from __future__ import annotations
 
