@@ -338,11 +338,13 @@ class OffPolicyILAgent(ILAgent):
         expert = self.expert_buffer.gather(expert_idx)
         policy = self.replay.gather(policy_idx)
         take_actor_step = self.n_updates % self.actor_delay == 0
-        states = torch.cat([expert["obs"], policy["obs"]]) if self.actor_on_expert_states else policy["obs"]
-        # The policy's forward at the actor's states, once, with gradient: when those are all the batch's states,
-        # the critic's V(s) terms sample from it (detached) and the actor step after the critic step samples
-        # from it again with fresh noise (the policy has not moved in between). Saves one policy forward.
-        pi_states = self.policy_module._mean_log_std(states) if take_actor_step else None
+        states = pi_states = None
+        if take_actor_step:
+            # The policy's forward at the actor's states, once, with gradient: when those are all the batch's
+            # states, the critic's V(s) terms sample from it (detached) and the actor step after the critic step
+            # samples from it again with fresh noise (the policy has not moved in between): one forward saved.
+            states = torch.cat([expert["obs"], policy["obs"]]) if self.actor_on_expert_states else policy["obs"]
+            pi_states = self.policy_module._mean_log_std(states)
         loss, info = self.critic_loss(expert, policy, pi_states if self.actor_on_expert_states else None)
         if self.conservative_weight > 0.0:
             penalty = self.conservative_term(policy)
