@@ -76,7 +76,7 @@ def test_il_speed_runs_and_compares_each_agent_with_the_bare_update_of_its_criti
     on_rows = dict(re.findall(r"^(\S+(?: env)?)\s+\d+\s+([\d.]+)$", onpolicy, re.M))
     assert float(on_rows["bare env"]) == 1.0 and 0 < float(on_rows["gail"]), out
     # the breakdown: with all the work split perfectly over two cores the ratio would at most double
-    draw_us, fit_us, bound_free_fit, bound_two_cores = re.search(
+    _, _, bound_free_fit, bound_two_cores = re.search(
         r"^gail\s+(\d+)\s+(\d+)\s+([\d.]+)\s+([\d.]+)$", onpolicy, re.M).groups()
     assert float(bound_two_cores) == pytest.approx(min(1.0, 2 * float(on_rows["gail"])), abs=0.011), out
     assert float(on_rows["gail"]) <= float(bound_free_fit) <= 1.0, out
