@@ -96,35 +96,49 @@ def normalized_score(task_id: str, ret: Any, path: str | Path | None = None) -> 
 # ----------------------------------------------------------------------------- measuring
 
 
+class _UniformRandomPolicy:
+    """Uniform random actions in [-1, 1] from one generator (a random policy's baseline)."""
+
+    def __init__(self, act_dim: int, rng: np.random.Generator):
+        self.act_dim, self.rng = act_dim, rng
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        return self.rng.uniform(-1.0, 1.0, self.act_dim)
+
+
 def evaluate(task_id: str, policy: Callable[[np.ndarray], np.ndarray] | None, episodes: int, seed: int,
-             log: Callable[[str], None] | None = None) -> dict[str, Any]:
+             log: Callable[[str], None] | None = None, details: bool = False,
+             env_kwargs: Mapping[str, Any] | None = None) -> dict[str, Any]:
     """Mean/std return of a deterministic policy (None = uniform random actions in [-1, 1]) over
-    ``episodes`` episodes whose reset seeds come from ``episode_seeds(seed, episodes)`` (the policy's
-    optional ``start_episode(env, seed)`` hook is called after every reset, as in the dataset rollouts)."""
-    from loco_il.datasets.providers.expert import episode_seeds, start_episode
+    ``episodes`` episodes whose reset seeds come from ``episode_seeds(seed, episodes)``, rolled out as the
+    datasets are (`rollout_episode`: the policy's optional ``start_episode(env, seed)`` hook is called after
+    every reset). ``details``: also per-episode ``returns``, ``lengths``, ``terminated`` (ended by a fall or
+    divergence before the horizon) and ``forward_speed`` (mean x velocity of the task's velocity point, m/s).
+    ``env_kwargs`` go to the env (e.g. ``init_state_sampler``: other start states)."""
+    from loco_il.datasets.providers.expert import episode_seeds, rollout_episode
     from loco_il.environments.registry import make
-    env = make(f"{_key(task_id)}.{_any_dataset(task_id)}")
-    rng = np.random.default_rng(seed)
-    returns, lengths = [], []
-    for i, s in enumerate(episode_seeds(seed, episodes)):
-        env.seed(int(s))
-        obs = env.reset()
-        if policy is not None:
-            start_episode(policy, env, int(s))
-        total, t = 0.0, 0
-        for t in range(int(env.info.horizon)):
-            a = rng.uniform(-1.0, 1.0, env.model.nu) if policy is None else np.clip(policy(obs), -1.0, 1.0)
-            obs, r, absorbing, _ = env.step(a)
-            total += r
-            if absorbing:
-                break
-        returns.append(total)
-        lengths.append(t + 1)
-        if log:
-            log(f"[baselines] {task_id}: episode {i + 1}/{episodes} return {total:.2f} length {t + 1}")
-    env.stop()
-    return {"return_mean": float(np.mean(returns)), "return_std": float(np.std(returns)), "episodes": int(episodes),
-            "seed": int(seed), "mean_episode_length": float(np.mean(lengths))}
+    env = make(f"{_key(task_id)}.{_any_dataset(task_id)}", **dict(env_kwargs or {}))
+    if policy is None:
+        policy = _UniformRandomPolicy(int(env.model.nu), np.random.default_rng(seed))
+    horizon = int(env.info.horizon)
+    returns, lengths, terminated, speeds = [], [], [], []
+    try:
+        for i, s in enumerate(episode_seeds(seed, episodes)):
+            ep = rollout_episode(env, policy, int(s), horizon, i)
+            returns.append(float(np.sum(ep["rewards"])))
+            lengths.append(len(ep["rewards"]))
+            terminated.append(bool(ep["absorbing"]))
+            speeds.append(float(ep["xy_end"][0] - ep["xy_start"][0]) / (lengths[-1] * env.dt))
+            if log:
+                log(f"[baselines] {task_id}: episode {i + 1}/{episodes} return {returns[-1]:.2f} "
+                    f"length {lengths[-1]} speed {speeds[-1]:.3f} m/s")
+    finally:
+        env.stop()
+    out = {"return_mean": float(np.mean(returns)), "return_std": float(np.std(returns)), "episodes": int(episodes),
+           "seed": int(seed), "mean_episode_length": float(np.mean(lengths))}
+    if details:
+        out.update(returns=returns, lengths=lengths, terminated=terminated, forward_speed=speeds)
+    return out
 
 
 def _any_dataset(task_id: str) -> str:

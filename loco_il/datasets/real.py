@@ -3,10 +3,10 @@
 ``LocoEnv.make("UnitreeH1.walk.real").create_dataset()`` lands here (the provider registry imports
 this module on first use of a `real` dataset).  For the env's task it
 
-1. finds the task's motion files (:data:`TASK_CLIPS`; ``clips=[...]`` overrides) in the mocap
-   folder: ``$LOCO_IL_MOCAP`` if set (and then only there), else ``<repo>/../shared/mocap``, else
-   ``~/.cache/loco_il/mocap`` -- a file is looked up by its relative path (``deepmimic/...``,
-   ``cmu_bvh/...``) and then by its bare name;
+1. finds the task's motion files (:data:`TASK_CLIPS`; ``clips=[...]`` overrides) in the first folder
+   that has them all of ``$LOCO_IL_MOCAP`` (if set), the clips shipped in the package
+   (:data:`PACKAGED_MOCAP`) and ``~/.cache/loco_il/mocap`` -- a file is looked up by its relative path
+   (``deepmimic/...``, ``cmu_bvh/...``) and then by its bare name;
 2. loads them (DeepMimic ``.txt`` or BVH ``.bvh``), trims them, repeats cyclic clips to the
    wanted length, and retargets each to the robot (:func:`~loco_il.datasets.mocap.retarget.retarget_clip`,
    keypoint map from :mod:`~loco_il.datasets.mocap.robot_maps`);
@@ -51,7 +51,9 @@ __all__ = ["ClipSpec", "TASK_CLIPS", "PROVENANCE", "MotionFilesMissingError", "m
 MOCAP_ENV = "LOCO_IL_MOCAP"
 #: bump when the way clips become datasets changes (part of the cache key; the solver has its own version)
 REAL_GENERATOR_VERSION = 1
-_REPO = Path(__file__).resolve().parents[2]
+#: the motion clips shipped with loco_il (DeepMimic's walk/run/jog/long_walk3 and character file under the MIT
+#: licence, CMU subject 131 trials 01-03 with the CMU acknowledgement): see ``mocap/data/README.md``
+PACKAGED_MOCAP = Path(__file__).resolve().parent / "mocap" / "data"
 
 
 @dataclass(frozen=True)
@@ -94,12 +96,11 @@ class MotionFilesMissingError(ProviderUnavailableError):
 
 
 def mocap_search_path() -> list[Path]:
-    """Folders searched for motion files: ``$LOCO_IL_MOCAP`` alone when set, else
-    ``<repo>/../shared/mocap`` then ``~/.cache/loco_il/mocap``."""
+    """Folders searched for motion files, in order: ``$LOCO_IL_MOCAP`` (when set: the user's own clips), the
+    clips shipped in the package (:data:`PACKAGED_MOCAP`), then ``~/.cache/loco_il/mocap``."""
     given = os.environ.get(MOCAP_ENV)
-    if given:
-        return [Path(given).expanduser()]
-    return [(_REPO.parent / "shared" / "mocap").resolve(), Path.home() / ".cache" / "loco_il" / "mocap"]
+    user = [Path(given).expanduser()] if given else []
+    return user + [PACKAGED_MOCAP, Path.home() / ".cache" / "loco_il" / "mocap"]
 
 
 def _lookup(folder: Path, rel: str) -> Optional[Path]:
@@ -120,15 +121,14 @@ def find_motion_files(specs: Sequence[ClipSpec], what: str = "") -> list[Path]:
         found = [_lookup(folder, s.path) for s in specs]
         if all(f is not None for f in found):
             return found                                        # type: ignore[return-value]
-    first = search[0]
-    missing = [s.path for s in specs if _lookup(first, s.path) is None]
+    missing = [s.path for s in specs if all(_lookup(folder, s.path) is None for folder in search)]
     where = ", ".join(str(f) for f in search)
     raise MotionFilesMissingError(
         f"{what or 'this real dataset'} is built from motion-capture files that were not found: "
-        f"{', '.join(missing)} (looked in {where}). Put them under {first} keeping their sub-folders "
-        f"(e.g. {first / specs[0].path}), or set ${MOCAP_ENV} to the folder that holds them. The DeepMimic "
-        f"clips (humanoid3d_*.txt) come from the DeepMimic repository (data/motions, MIT licence); the BVH "
-        f"files from the CMU motion-capture database (mocap.cs.cmu.edu, BVH conversions, e.g. subject 131).")
+        f"{', '.join(missing) or 'not all in one folder'} (looked in {where}). Put them in one folder, keeping "
+        f"their sub-folders (e.g. <folder>/{specs[0].path}), and set ${MOCAP_ENV} to that folder. More DeepMimic "
+        f"clips (humanoid3d_*.txt) come from the DeepMimic repository (data/motions, MIT licence); BVH files from "
+        f"the CMU motion-capture database (mocap.cs.cmu.edu, BVH conversions).")
 
 
 def load_motion(path: Union[str, os.PathLike], spec: Optional[ClipSpec] = None):

@@ -274,6 +274,10 @@ class LocoEnv(Environment):
         return obs.copy(), float(reward), terminated, info
 
     # ------------------------------------------------------------------ helpers
+    def horizontal_position(self) -> np.ndarray:
+        """World (x, y) of the point whose velocity the task rewards (root or centre of mass), now."""
+        return self._velocity_point()
+
     def _velocity_point(self) -> np.ndarray:
         """Horizontal position whose finite difference over a step is the task's velocity."""
         point = self.task.velocity_point

@@ -1,9 +1,11 @@
-"""Command line: train and evaluate experts (PPO by default, or SAC with algo=sac).
+"""Command line: train and evaluate experts (PPO by default, SAC with algo=sac, motion tracking with algo=tracking).
 
     python -m loco_il.experts train task=Hopper.run total_steps=2000000 num_envs=16 seed=0 out_dir=runs/hopper
     python -m loco_il.experts train task=HalfCheetah.run algo=sac total_steps=1000000 device=cuda
     python -m loco_il.experts eval path=runs/hopper/best.pt episodes=10
     python -m loco_il.experts eval path=runs/hopper/evals episodes=30     # every kept policy; the most reliable
+    python -m loco_il.experts train task=Atlas.walk algo=tracking        # a motion-tracking expert (PPO)
+    python -m loco_il.experts eval path=runs/experts/Atlas.walk/seed0/best.pt episodes=100 starts=both
     python -m loco_il.experts slim path=runs/ant/checkpoint.pt out=ant_checkpoint_noreplay.pt
 
 `train` is a Hydra app (configs/train.yaml with configs/algo/<algo>.yaml, then the `<algo>:` section of
@@ -58,7 +60,8 @@ def compose_train_config(cfg: DictConfig, cli_overrides: list[str]) -> dict[str,
     return OmegaConf.to_container(cfg, resolve=True)
 
 
-TRAINERS = {"ppo": "loco_il.experts.ppo:PPOTrainer", "sac": "loco_il.experts.sac:SACTrainer"}
+TRAINERS = {"ppo": "loco_il.experts.ppo:PPOTrainer", "sac": "loco_il.experts.sac:SACTrainer",
+            "tracking": "loco_il.experts.tracking.trainer:TrackingTrainer"}
 
 
 def trainer_class(algo: str):
@@ -99,6 +102,11 @@ def eval_main(cfg: DictConfig) -> None:
             task = cfg.task or expert.metadata.get("task_id")
             if not task:
                 raise SystemExit(f"{path} names no task_id; pass task=<Task-ID>")
+            if hasattr(expert, "start_episode"):    # keeps a clock: episodes one by one, as datasets record them
+                result = _evaluate_env_expert(expert, path, task, int(cfg.episodes), int(cfg.seed), str(cfg.starts))
+                results.append(result)
+                print(json.dumps(result), flush=True)
+                continue
             if task not in envs_by_task:
                 envs_by_task[task] = make_vec_env(task, max(1, int(cfg.num_envs)), cfg["async"])
             envs = envs_by_task[task]
@@ -122,6 +130,46 @@ def eval_main(cfg: DictConfig) -> None:
         print(json.dumps({"most_reliable": best["path"], "terminated": best["terminated"],
                           "return_mean": best["return_mean"], "return_std": best["return_std"],
                           "evaluated": len(results)}), flush=True)
+
+
+STARTS = ("env", "reference", "both")
+
+
+def _evaluate_env_expert(expert: Any, path: Path, task: str, episodes: int, seed: int,
+                         starts: str = "both") -> dict[str, Any]:
+    """An expert with a `start_episode` hook (e.g. a `TrackingExpert`), episode by episode as datasets record them.
+
+    `starts`: "env" (the task env's own start states), "reference" (states of the expert's reference motion at
+    seeded uniform phases; experts without a reference refuse) or "both" (the first half of the episodes from the
+    env's starts, the rest from the reference). Episode k of a part starts from `episode_seeds(seed, n)[k]`.
+    Reports returns, terminations (falls) and the mean forward speed against the task's target speed."""
+    import numpy as np
+
+    from loco_il.datasets.baselines import evaluate
+    from loco_il.environments.registry import make
+    if starts not in STARTS:
+        raise SystemExit(f"starts must be one of {', '.join(STARTS)}; got {starts!r}")
+    sampler = getattr(expert, "reference_start_sampler", None)
+    if starts != "env" and sampler is None:
+        raise SystemExit(f"{path} has no reference motion; use starts=env")
+    n_env = {"env": episodes, "reference": 0, "both": (episodes + 1) // 2}[starts]
+    parts = [evaluate(task, expert, n, seed, details=True, env_kwargs=kwargs)
+             for n, kwargs in ((n_env, {}), (episodes - n_env, {"init_state_sampler": sampler and sampler()}))
+             if n > 0]
+    res = {k: sum((p[k] for p in parts), []) for k in ("returns", "lengths", "terminated", "forward_speed")}
+    probe = make(task)
+    target = getattr(probe.task.reward, "target", None)
+    probe.stop()
+    returns, speeds = np.array(res["returns"]), np.array(res["forward_speed"])
+    return {"path": str(path), "task_id": task, "episodes": episodes, "seed": seed, "starts": starts,
+            "env_start_episodes": n_env,
+            "return_mean": round(float(returns.mean()), 2), "return_std": round(float(returns.std()), 2),
+            "return_min": round(float(returns.min()), 2), "length_mean": round(float(np.mean(res["lengths"])), 1),
+            "terminated": int(np.sum(res["terminated"])), "forward_speed_mean": round(float(speeds.mean()), 3),
+            "forward_speed_std": round(float(speeds.std()), 3), "target_speed": target,
+            "returns": [round(float(r), 2) for r in returns],
+            "training_steps": expert.metadata.get("training_steps"),
+            "stored_eval_return": expert.metadata.get("eval_return"), "checksum": expert.checksum()}
 
 
 def slim_main(argv: list[str]) -> None:

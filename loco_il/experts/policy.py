@@ -158,9 +158,13 @@ class ExpertPolicy:
                 f"eval_return={self.metadata.get('eval_return')})")
 
 
-def load_expert(path: str | os.PathLike) -> ExpertPolicy:
-    """Load an expert `.pt` written by `ExpertPolicy.save` (weights_only: no code is unpickled)."""
+def load_expert(path: str | os.PathLike) -> Any:
+    """Load an expert `.pt` written by `ExpertPolicy.save`, or by `TrackingExpert.save` (a policy with its
+    reference motion and PD conversion; format "loco_il.tracking_expert/v1"). weights_only: no code is unpickled."""
     data = torch.load(path, map_location="cpu", weights_only=True)
+    from loco_il.experts.tracking.expert import FORMAT as TRACKING_FORMAT, TrackingExpert
+    if isinstance(data, Mapping) and data.get("format") == TRACKING_FORMAT:
+        return TrackingExpert.from_file_dict(data, path)
     expert = ExpertPolicy.from_file_dict(data)
     stored = expert.metadata.get("checksum")
     if stored is not None and stored != expert.checksum():

@@ -185,13 +185,21 @@ class ExpertTrainer:
         """One line saying how this run is set up (printed at the start)."""
         return f"{self.cfg.num_envs} envs, update on {self.device}"
 
+    def make_envs(self, num_envs: int, purpose: str):
+        """The vector env for training (`purpose="train"`) or evaluation ("eval"): copies of the task env."""
+        return self._make_vec(self.task_id, num_envs, self.cfg.async_envs, autoreset=True,
+                              env_kwargs=self.cfg.env_kwargs)
+
+    def eval_act(self, expert: Any) -> Callable[[np.ndarray], np.ndarray]:
+        """What acts in the evaluation envs: batched observations -> batched actions."""
+        return expert.act
+
     # ------------------------------------------------------------------ training envs
     def reset_envs(self, salt: int) -> None:
         """Create the training envs on first use; reset them with seeds drawn from (cfg.seed, salt)."""
         cfg = self.cfg
         if self.envs is None:
-            self.envs = self._make_vec(self.task_id, cfg.num_envs, cfg.async_envs, autoreset=True,
-                                       env_kwargs=cfg.env_kwargs)
+            self.envs = self.make_envs(cfg.num_envs, "train")
         base = int(np.random.SeedSequence([cfg.seed, salt]).generate_state(1)[0]) % (2 ** 31 - cfg.num_envs)
         self._obs, _ = self.envs.reset(seed=[base + i for i in range(cfg.num_envs)])
         self._ep_ret = np.zeros(cfg.num_envs)
@@ -269,17 +277,17 @@ class ExpertTrainer:
 
     def evaluate(self) -> dict[str, Any]:
         """Deterministic episodes of the current policy (normalizers, if any, frozen)."""
-        from loco_il.experts.vec import evaluate
+        from loco_il.experts.vec import evaluate_episodes
         cfg = self.cfg
         if self.eval_envs is None:
             n = cfg.eval_envs or min(cfg.eval_episodes, cfg.num_envs)
-            self.eval_envs = self._make_vec(self.task_id, max(1, n), cfg.async_envs, autoreset=True,
-                                            env_kwargs=cfg.env_kwargs)
+            self.eval_envs = self.make_envs(max(1, n), "eval")
         expert = self.make_expert()
         t0 = time.time()
-        returns, lengths = evaluate(expert.act, self.eval_envs, cfg.eval_episodes, seed=10_000 + 1000 * cfg.seed)
+        returns, lengths, terminated = evaluate_episodes(self.eval_act(expert), self.eval_envs, cfg.eval_episodes,
+                                                         seed=10_000 + 1000 * cfg.seed)
         ev = {"step": self.step, "return_mean": float(returns.mean()), "return_std": float(returns.std()),
-              "length_mean": float(lengths.mean()), "episodes": int(len(returns)),
+              "length_mean": float(lengths.mean()), "episodes": int(len(returns)), "terminated": int(terminated.sum()),
               "returns": [float(r) for r in returns], "eval_time_s": round(time.time() - t0, 3)}
         self.last_eval, self.last_eval_step = ev, self.step
         with open(self.out_dir / "evals.jsonl", "a") as f:

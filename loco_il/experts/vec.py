@@ -46,12 +46,16 @@ class _LeanEnv(gym.Wrapper):
         return obs, reward, terminated, truncated, {}
 
 
-def _make_env(task_id: str, env_kwargs: Mapping[str, Any] | None = None) -> gym.Env:
-    from loco_il.environments.gym_adapter import LocoGymEnv
-    return _LeanEnv(LocoGymEnv(task_id, **dict(env_kwargs or {})))
+def _make_env(task_id: str, env_kwargs: Mapping[str, Any] | None = None,
+              factory: Callable[..., gym.Env] | None = None) -> gym.Env:
+    """`factory(task_id, **env_kwargs)` (default: the task's `LocoGymEnv`) behind `_LeanEnv`."""
+    if factory is None:
+        from loco_il.environments.gym_adapter import LocoGymEnv as factory
+    return _LeanEnv(factory(task_id, **dict(env_kwargs or {})))
 
 
-def _make_worker_env(task_id: str, env_kwargs: Mapping[str, Any] | None = None) -> gym.Env:
+def _make_worker_env(task_id: str, env_kwargs: Mapping[str, Any] | None = None,
+                     factory: Callable[..., gym.Env] | None = None) -> gym.Env:
     """`_make_env` inside an AsyncVectorEnv worker process. Ctrl-C / SIGTERM reach the whole process group,
     and the trainer (parent) stops after its iteration with a checkpoint; a worker that died on the signal
     would break that last iteration. Workers exit when the parent closes them or its pipe goes away.
@@ -60,7 +64,7 @@ def _make_worker_env(task_id: str, env_kwargs: Mapping[str, Any] | None = None) 
     if multiprocessing.parent_process() is not None:
         signal.signal(signal.SIGINT, signal.SIG_IGN)
         signal.signal(signal.SIGTERM, signal.SIG_IGN)
-    return _make_env(task_id, env_kwargs)
+    return _make_env(task_id, env_kwargs, factory)
 
 
 def resolve_async(async_mode: bool | str | None, num_envs: int) -> bool:
@@ -81,13 +85,15 @@ def resolve_async(async_mode: bool | str | None, num_envs: int) -> bool:
 
 
 def make_vec_env(task_id: str, num_envs: int, async_mode: bool | str | None = "auto", autoreset: bool = True,
-                 env_kwargs: Mapping[str, Any] | None = None, context: str | None = "forkserver") -> VectorEnv:
-    """A Gymnasium vector env of `num_envs` copies of `task_id` (see the module docstring)."""
+                 env_kwargs: Mapping[str, Any] | None = None, context: str | None = "forkserver",
+                 factory: Callable[..., gym.Env] | None = None) -> VectorEnv:
+    """A Gymnasium vector env of `num_envs` copies of `task_id` (see the module docstring); `factory(task_id,
+    **env_kwargs)` builds each env instead of `LocoGymEnv` (a module-level callable, so workers can unpickle it)."""
     if num_envs < 1:
         raise ValueError(f"num_envs must be >= 1, got {num_envs}")
     is_async = resolve_async(async_mode, num_envs)
     make = _make_worker_env if is_async else _make_env
-    fns: list[Callable[[], gym.Env]] = [functools.partial(make, task_id, dict(env_kwargs or {}))
+    fns: list[Callable[[], gym.Env]] = [functools.partial(make, task_id, dict(env_kwargs or {}), factory)
                                         for _ in range(num_envs)]
     mode = AutoresetMode.SAME_STEP if autoreset else AutoresetMode.DISABLED
     if is_async:

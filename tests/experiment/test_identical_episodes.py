@@ -21,11 +21,17 @@ def _row(res: dict, task: str) -> dict:
 
 
 def test_robot_without_reset_noise_gives_identical_episodes_and_says_so():
-    res = _evaluate("UnitreeH1.walk.real")
+    res = _evaluate("UnitreeA1.simple.real")
     assert res["distinct_episodes"] == 1 and res["return_std"] == 0.0
     note = identical_episodes_note(res)
     assert note is not None and "all 3 evaluation episodes identical" in note
-    assert note in format_eval_table([_row(res, "UnitreeH1.walk")])
+    assert note in format_eval_table([_row(res, "UnitreeA1.simple")])
+
+
+def test_locomujoco_humanoids_start_from_distinct_states():
+    for task in ("Atlas.walk.real", "UnitreeH1.walk.real"):
+        res = _evaluate(task)
+        assert res["distinct_episodes"] == 3 and identical_episodes_note(res) is None
 
 
 def test_body_with_reset_noise_gives_distinct_episodes_and_no_note():

@@ -8,14 +8,13 @@ import pytest
 from loco_il.datasets.mocap import BVHParseError, canonical_keypoints, load_bvh
 from loco_il.datasets.mocap.bvh import CMU_BVH_NAME_MAP, UNIT_SCALES, detect_unit_scale
 
-SHARED_MOCAP = Path(__file__).resolve().parents[2] / ".." / "shared" / "mocap"
-CMU_DIR = SHARED_MOCAP / "cmu_bvh"
+from loco_il.datasets.real import PACKAGED_MOCAP  # noqa: E402  (the clips shipped in the package)
+CMU_DIR = PACKAGED_MOCAP / "cmu_bvh"
 
 
 def _need_cmu(name: str) -> Path:
     path = CMU_DIR / name
-    if not path.exists():
-        pytest.skip(f"../shared/mocap not present: {path} is needed for the real CMU BVH checks")
+    assert path.is_file(), f"{path} is missing from the package data"
     return path
 
 

@@ -15,8 +15,8 @@ from loco_il.datasets.mocap import (
 )
 from loco_il.datasets.mocap.deepmimic import HUMANOID3D_JOINTS
 
-SHARED_MOCAP = Path(__file__).resolve().parents[2] / ".." / "shared" / "mocap"
-DM_DIR = SHARED_MOCAP / "deepmimic"
+from loco_il.datasets.real import PACKAGED_MOCAP  # noqa: E402  (the clips shipped in the package)
+DM_DIR = PACKAGED_MOCAP / "deepmimic"
 
 ALL_KEYPOINTS = ["pelvis", "l_hip", "r_hip", "l_knee", "r_knee", "l_ankle", "r_ankle", "l_toe",
                  "r_toe", "torso", "neck", "head", "l_shoulder", "r_shoulder", "l_elbow", "r_elbow",
@@ -26,8 +26,7 @@ IDENT = [1.0, 0.0, 0.0, 0.0]
 
 
 def _need(path: Path) -> Path:
-    if not path.exists():
-        pytest.skip(f"../shared/mocap not present: {path} is needed for the real DeepMimic checks")
+    assert path.is_file(), f"{path} is missing from the package data"
     return path
 
 
@@ -240,9 +239,7 @@ def test_walk_resample(walk):
 
 
 def test_canonical_keypoints_agree_across_formats(walk):
-    bvh_path = SHARED_MOCAP / "cmu_bvh" / "131_01.bvh"
-    if not bvh_path.exists():
-        pytest.skip(f"../shared/mocap not present: {bvh_path} is needed")
+    bvh_path = _need(PACKAGED_MOCAP / "cmu_bvh" / "131_01.bvh")
     cmu = load_bvh(bvh_path)
     kp_dm = canonical_keypoints(walk, require=ALL_KEYPOINTS)
     kp_cmu = canonical_keypoints(cmu, require=ALL_KEYPOINTS)

@@ -1,8 +1,7 @@
 """Retargeting human motion to robots (IK) and the `real` datasets built from it.
 
-Core tests synthesize a small walking clip on DeepMimic's humanoid skeleton, so they run without
-``../shared``; the tests on the shared motion files (DeepMimic walk, the `real` provider) skip with
-a reason when ``../shared/mocap`` is absent.
+Core tests synthesize a small walking clip on DeepMimic's humanoid skeleton; the others use the motion
+files shipped in the package (DeepMimic walk, the `real` provider).
 
 Documented bounds (see loco_il/datasets/mocap/retarget.py): mean keypoint error below 0.08 m,
 no sole point more than 1 cm below the ground, every limited joint inside its range.
@@ -29,8 +28,8 @@ from loco_il.datasets.mocap.retarget import (
 )
 from loco_il.datasets.mocap.robot_maps import ROBOT_MAPS, get_robot_map, parse_point
 
-SHARED_MOCAP = Path(__file__).resolve().parents[2] / ".." / "shared" / "mocap"
-WALK = SHARED_MOCAP / "deepmimic" / "humanoid3d_walk.txt"
+from loco_il.datasets.real import PACKAGED_MOCAP  # noqa: E402  (the clips shipped in the package)
+WALK = PACKAGED_MOCAP / "deepmimic" / "humanoid3d_walk.txt"
 
 KEYPOINT_BOUND = 0.08      # m, mean keypoint error
 PENETRATION_BOUND = 0.01   # m, deepest sole point below the ground
@@ -205,15 +204,28 @@ def test_uniform_mode_and_options():
 def test_missing_motion_files_error(tmp_path, monkeypatch):
     from loco_il.datasets.real import MotionFilesMissingError
     env = _env("UnitreeH1.walk.real")
-    empty = tmp_path / "no_motion_here"
-    empty.mkdir()
-    monkeypatch.setenv("LOCO_IL_MOCAP", str(empty))
+    user = tmp_path / "my_clips"
+    user.mkdir()
+    monkeypatch.setenv("LOCO_IL_MOCAP", str(user))
     monkeypatch.setenv("LOCO_IL_DATASETS", str(tmp_path / "datasets"))
     with pytest.raises(MotionFilesMissingError) as info:
-        env.create_dataset(verbose=False)
+        env.create_dataset(clips=["cmu_bvh/01_01.bvh"], verbose=False)
     msg = str(info.value)
-    assert "humanoid3d_walk.txt" in msg and "131_01.bvh" in msg and str(empty) in msg and "LOCO_IL_MOCAP" in msg
+    assert "01_01.bvh" in msg and str(user) in msg and "LOCO_IL_MOCAP" in msg
     assert isinstance(info.value, DatasetError)
+
+
+def test_user_mocap_folder_adds_clips(tmp_path, monkeypatch):
+    """$LOCO_IL_MOCAP adds clips: a file there is found, and the task's own clips still come from the package."""
+    from loco_il.datasets.real import PACKAGED_MOCAP, find_motion_files, ClipSpec
+    user = tmp_path / "my_clips"
+    (user / "mine").mkdir(parents=True)
+    own = user / "mine" / "walk_copy.txt"
+    own.write_bytes((PACKAGED_MOCAP / "deepmimic" / "humanoid3d_walk.txt").read_bytes())
+    monkeypatch.setenv("LOCO_IL_MOCAP", str(user))
+    assert find_motion_files([ClipSpec("mine/walk_copy.txt")]) == [own]
+    assert find_motion_files([ClipSpec("deepmimic/humanoid3d_walk.txt")]) == [
+        PACKAGED_MOCAP / "deepmimic" / "humanoid3d_walk.txt"]
 
 
 def test_tasks_and_bodies_without_motion_are_explained(tmp_path, monkeypatch):
@@ -227,14 +239,9 @@ def test_tasks_and_bodies_without_motion_are_explained(tmp_path, monkeypatch):
         real_provider(_env("UnitreeA1.simple.real"), verbose=False)
 
 
-def _need_shared() -> None:
-    if not WALK.exists():
-        pytest.skip(f"../shared/mocap not present ({WALK} is needed for the tests on real motion capture)")
-
 
 @pytest.mark.parametrize("body", ["UnitreeH1", "G1"])
 def test_deepmimic_walk_to_two_robots(body):
-    _need_shared()
     env = _env(_task_of(body))
     clip = load_deepmimic(WALK)
     res = retarget_clip(env, clip, n_cycles=2)
@@ -247,7 +254,6 @@ def test_deepmimic_walk_to_two_robots(body):
 
 
 def test_real_provider_builds_and_caches(tmp_path, monkeypatch):
-    _need_shared()
     monkeypatch.delenv("LOCO_IL_MOCAP", raising=False)
     monkeypatch.setenv("LOCO_IL_DATASETS", str(tmp_path))
     env = LocoEnv.make("UnitreeH1.walk.real")

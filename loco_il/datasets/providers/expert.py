@@ -416,7 +416,8 @@ def _step_episode(env: Any, obs: np.ndarray, act: Callable[[np.ndarray, int], np
 
 def rollout_episode(env: Any, policy: Policy, seed: int, horizon: int, index: int = 0) -> dict[str, Any]:
     """One deterministic episode of ``policy`` from ``env.seed(seed); env.reset()``: its initial simulator
-    state, the transitions (obs, next_obs, actions, rewards) and whether it ended in an absorbing state.
+    state, the transitions (obs, next_obs, actions, rewards), whether it ended in an absorbing state and the
+    horizontal position of the task's velocity point at its start and end (``xy_start``, ``xy_end``).
     Depends on nothing but the seed, so episodes can be recorded in any env of the task, in any order."""
     nu = int(env.model.nu)
 
@@ -431,9 +432,11 @@ def rollout_episode(env: Any, policy: Policy, seed: int, horizon: int, index: in
     env.seed(int(seed))
     obs = env.reset()
     qpos, qvel = env.get_sim_state()
+    xy_start = env.horizontal_position()
     start_episode(policy, env, int(seed))
     steps = _step_episode(env, obs, act, horizon)
-    return {"qpos": np.asarray(qpos), "qvel": np.asarray(qvel), **steps, "absorbing": bool(steps["absorbing"][-1])}
+    return {"qpos": np.asarray(qpos), "qvel": np.asarray(qvel), **steps, "absorbing": bool(steps["absorbing"][-1]),
+            "xy_start": xy_start, "xy_end": env.horizontal_position()}
 
 
 def rollout(env: Any, policy: Policy, seeds: Sequence[int], *, info: Mapping[str, Any] | None = None,

@@ -35,6 +35,10 @@ WALK_SPEED = 1.25       # m/s, LocoMuJoCo reward_params target_velocity for walk
 RUN_SPEED = 2.5         # m/s, LocoMuJoCo reward_params target_velocity for run
 DATASETS = ("real", "perfect", "preference")
 STAND_KEY = "stand"
+#: start-state noise of the humanoids: uniform +-0.01 on every qpos and qvel entry (rad, m, rad/s, m/s), the
+#: scale of Gymnasium's Humanoid-v5 (reset_noise_scale 1e-2), so that seeded episodes start from distinct states
+#: (LocoMuJoCo itself starts from dataset states; ours start standing)
+HUMANOID_RESET_NOISE = ("uniform", 0.01)
 
 
 def loader(relative: str) -> Callable[[], mujoco.MjSpec]:
@@ -123,6 +127,8 @@ def locomujoco_body(name: str, model: str, tasks: Mapping[str, Task], licence_ke
     the "stand" keyframe); `fields` sets the rest (family, default_task, removed joints, ...)."""
     fields.setdefault("family", "humanoid")
     fields.setdefault("default_task", "walk")
+    if fields["family"] == "humanoid":
+        fields.setdefault("reset_noise", HUMANOID_RESET_NOISE)
     return Body(name=name, load_spec=loader(model), tasks=tasks, datasets=DATASETS, default_dataset="real",
                 control_dt=CONTROL_DT, timestep=TIMESTEP, init_keyframe=STAND_KEY,
                 licence=LICENCES[licence_key], source=f"loco-mujoco 0.4.1 environments/data/{model}",

@@ -1,0 +1,53 @@
+"""Options of motion tracking (reward, start states, termination, PD targets), one dataclass for all of them.
+
+Defaults follow DeepMimic (Peng et al. 2018, "DeepMimic: Example-Guided Deep Reinforcement Learning of
+Physics-Based Character Skills", sec. 5 and 6): reward weights 0.65 pose + 0.1 velocity + 0.15 end-effector +
+0.1 centre-of-mass (here: the root body), each term exp(-k * squared error) with k = 2, 0.1, 40, 10; reference
+state initialization (RSI) and early termination (ET). Where DeepMimic has no number, the choice is ours and
+says so. Per-body values go in the `tracking:` key of `loco_il/experts/configs/body/<Body>.yaml`.
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+
+@dataclass(frozen=True)
+class TrackingSettings:
+    # reward: weight and scale of each term (DeepMimic eq. 6-10)
+    w_pose: float = 0.65
+    w_vel: float = 0.1
+    w_ee: float = 0.15
+    w_root: float = 0.1
+    w_task: float = 0.0          # the env's task reward added with this weight (ours; 0 = tracking only)
+    k_pose: float = 2.0
+    k_vel: float = 0.1
+    k_ee: float = 40.0
+    k_root: float = 10.0
+    # start states: a fraction of training episodes start in the reference state at a uniform random phase
+    # (RSI), the rest from the env's own start (standing; ours: the expert must also start from there)
+    rsi_fraction: float = 0.8
+    rsi_noise: float = 0.02      # uniform noise on RSI joint positions (rad or m) and velocities (ours)
+    # early termination: the task's fall rule, plus the root drifting this far (m) from the reference (ours)
+    max_root_error: float = 0.6
+    # PD targets: target = reference + action_scale * action; motor torques by stable PD (Tan et al. 2011,
+    # which DeepMimic uses too) with kp, kd below
+    action_scale: float = 0.5    # rad per unit action (ours)
+    kp_angle: float = 0.25       # kp = peak torque / kp_angle: the error (rad) that saturates the motor (ours;
+    #                              zero-action tracking on Atlas from RSI lasts ~1.0 s with 0.25, ~0.6 s with 0.5)
+    damping_ratio: float = 1.0   # kd = ratio * 2 sqrt(kp * I), I the joint's own inertia at the reference pose
+    ramp_time: float = 0.5       # s over which PD targets blend from the start state into the reference (ours)
+    target_speed: float | None = None   # time-scale the reference to this speed (None: the task's target)
+
+    @classmethod
+    def from_mapping(cls, values: Mapping[str, Any] | None) -> "TrackingSettings":
+        values = dict(values or {})
+        names = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(values) - names)
+        if unknown:
+            raise ValueError(f"unknown tracking option(s) {unknown}; known: {sorted(names)}")
+        return cls(**values)
+
+    def to_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)

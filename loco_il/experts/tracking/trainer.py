@@ -1,0 +1,93 @@
+"""`TrackingTrainer`: PPO that learns to track the task's reference motion (`algo=tracking`).
+
+    python -m loco_il.experts train task=Atlas.walk algo=tracking total_steps=20000000
+
+The PPO learner, the loop, checkpoints (resumable), evaluations and snapshots are `ppo.PPOTrainer`'s; this class
+swaps the envs for `env.TrackingEnv` (training: reference state initialization, tracking reward, early
+termination; evaluation: the task env's own starts and reward, so `evals.jsonl` and `best.pt` rank policies by
+the task return) and ships `expert.TrackingExpert` files (policy + reference + PD conversion) as `best.pt`,
+`final.pt` and `snapshots/`. The reference (`reference.build_reference`, time-scaled to the task's target speed)
+is built once and kept in the checkpoint, so a resumed run tracks exactly the same motion.
+
+Options: those of `ppo.TrainConfig` plus `tracking` (a mapping of `settings.TrackingSettings` fields), set in
+`configs/algo/tracking.yaml`, the `tracking:` section of `configs/body/<Body>.yaml`, or on the command line
+(`tracking.rsi_fraction=0.9`).
+"""
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass, field
+from typing import Any, Callable, Mapping
+
+import numpy as np
+
+from loco_il.experts.ppo import PPOTrainer, TrainConfig
+from loco_il.experts.tracking.controller import PHASE_FEATURES, TrackingController
+from loco_il.experts.tracking.env import make_tracking_env
+from loco_il.experts.tracking.expert import TrackingExpert
+from loco_il.experts.tracking.reference import build_reference
+from loco_il.experts.tracking.settings import TrackingSettings
+
+
+@dataclass
+class TrackingConfig(TrainConfig):
+    """`ppo.TrainConfig` plus the tracking options."""
+
+    algo: str = "tracking"
+    tracking: Mapping[str, Any] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        d = super().to_dict()
+        d["tracking"] = dict(self.tracking)
+        return d
+
+
+def task_target_speed(env: Any) -> float | None:
+    """The forward speed the task's reward asks for (LocoMuJoCo's walk 1.25 m/s, run 2.5 m/s), if it has one."""
+    target = getattr(env.task.reward, "target", None)
+    return float(target) if target is not None else None
+
+
+class TrackingTrainer(PPOTrainer):
+    """See the module docstring."""
+
+    config_class = TrackingConfig
+    name = "motion tracking (PPO)"
+
+    def build(self) -> None:
+        from loco_il.environments import LocoEnv
+        settings = TrackingSettings.from_mapping(self.cfg.tracking)
+        env = LocoEnv.make(self.task_id, **self.cfg.env_kwargs)
+        try:
+            speed = settings.target_speed if settings.target_speed is not None else task_target_speed(env)
+            reference = build_reference(env, target_speed=speed)
+            self.controller = TrackingController.for_model(env.model, reference, settings, env.dt)
+        finally:
+            env.stop()
+        self.obs_dim += PHASE_FEATURES
+        super().build()
+
+    def describe(self) -> str:
+        ref = self.controller.reference
+        return (f"{super().describe()}; tracking {ref.source} at {ref.speed:.2f} m/s "
+                f"(x{ref.time_scale:.2f}, period {ref.period:.3f} s)")
+
+    def learner_state(self) -> dict[str, Any]:
+        return {**super().learner_state(), "controller": self.controller.to_dict()}
+
+    def load_learner_state(self, state: Mapping[str, Any]) -> None:
+        state = dict(state)
+        self.controller = TrackingController.from_dict(state.pop("controller"))
+        super().load_learner_state(state)
+
+    def make_envs(self, num_envs: int, purpose: str):
+        factory = functools.partial(make_tracking_env, controller_state=self.controller.to_dict(), mode=purpose)
+        return self._make_vec(self.task_id, num_envs, self.cfg.async_envs, autoreset=True,
+                              env_kwargs=self.cfg.env_kwargs, factory=factory)
+
+    def eval_act(self, expert: TrackingExpert) -> Callable[[np.ndarray], np.ndarray]:
+        return expert.policy.act          # the evaluation envs take the policy's PD offsets themselves
+
+    def make_expert(self, metadata: Mapping[str, Any] | None = None) -> TrackingExpert:
+        controller = TrackingController.from_dict(self.controller.to_dict())   # its own phase clock
+        return TrackingExpert(super().make_expert(metadata), controller, metadata)

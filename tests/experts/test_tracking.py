@@ -1,0 +1,206 @@
+"""Motion-tracking experts: the reference, the DeepMimic reward, reference state initialization, the PD
+conversion, the expert file and the trainer (loco_il.experts.tracking)."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from loco_il import LocoEnv
+from loco_il.experts.tracking.controller import PHASE_FEATURES, TrackingController
+from loco_il.experts.tracking.env import TrackingEnv
+from loco_il.experts.tracking.reference import build_reference
+from loco_il.experts.tracking.reward import TrackingReward
+from loco_il.experts.tracking.settings import TrackingSettings
+
+TASK = "Atlas.walk.perfect"
+
+
+@pytest.fixture(scope="module")
+def env():
+    e = LocoEnv.make(TASK)
+    yield e
+    e.stop()
+
+
+@pytest.fixture(scope="module")
+def reference(env):
+    return build_reference(env, target_speed=1.25)
+
+
+def _anchor(env, reward, reference, phase):
+    return env.data.xpos[reward.root][:2] - reference.kinematics(phase)[0][:2]
+
+
+def test_reference_is_periodic_with_drift_and_time_scaled(env, reference):
+    assert reference.speed == pytest.approx(1.25, rel=1e-6)        # time-scaled to the walk task's target
+    assert reference.time_scale > 1.0                               # the captured walk is slower (~1.0 m/s)
+    for phase in (0.0, 0.37, 0.999):
+        q0, v0 = reference.state(phase)
+        q1, v1 = reference.state(phase + 1.0)
+        np.testing.assert_allclose(q1 - q0, reference.drift, atol=1e-12)
+        np.testing.assert_allclose(v1, v0, atol=1e-12)
+    assert reference.drift[0] > 1.0 and np.count_nonzero(reference.drift) <= 2   # one stride along x only
+    # velocities are the positions' time derivative (central difference over one control step)
+    h = env.dt / reference.period
+    q_minus, _ = reference.state(0.5 - h)
+    q_plus, _ = reference.state(0.5 + h)
+    _, v = reference.state(0.5)
+    np.testing.assert_allclose(v, (q_plus - q_minus) / (2 * env.dt), atol=0.05 * np.abs(v).max())
+
+
+def test_tracking_reward_is_one_on_the_reference_and_falls_with_error(env, reference):
+    settings = TrackingSettings()
+    reward = TrackingReward(env.model, reference, settings)
+    for phase in (0.1, 0.6, 1.3):
+        q, v = reference.state(phase)
+        env.reset(np.concatenate([q, v]))
+        r, terms = reward(env.data, phase, np.zeros(2))
+        assert r == pytest.approx(1.0, abs=1e-6)
+        assert terms["root_error"] < 1e-9
+    q, v = reference.state(0.25)
+    previous = 1.0
+    rng = np.random.default_rng(0)
+    direction = rng.standard_normal(reference.actuated_qpos.size)
+    for size in (0.02, 0.05, 0.1, 0.2, 0.4):       # larger joint errors, lower reward
+        bent = q.copy()
+        bent[reference.actuated_qpos] += size * direction
+        env.reset(np.concatenate([bent, v]))
+        r, terms = reward(env.data, 0.25, np.zeros(2))
+        assert r < previous
+        previous = r
+    # a lagging root costs through the root term only
+    shifted = q.copy()
+    shifted[0] -= 0.3
+    env.reset(np.concatenate([shifted, v]))
+    r, terms = reward(env.data, 0.25, np.zeros(2))
+    assert terms["root_error"] == pytest.approx(0.3, abs=1e-6)
+    assert terms["pose"] == pytest.approx(1.0, abs=1e-6) and terms["root"] == pytest.approx(np.exp(-10 * 0.09))
+
+
+def test_reference_state_initialization_starts_on_the_reference(env, reference):
+    settings = TrackingSettings(rsi_fraction=1.0, rsi_noise=0.0)
+    controller = TrackingController.for_model(env.model, reference, settings, env.dt)
+    tenv = TrackingEnv(TASK, controller.to_dict(), "train")
+    phases = []
+    for seed in range(4):
+        obs, _ = tenv.reset(seed=seed)
+        phase = tenv.controller.phase
+        phases.append(phase)
+        q, v = reference.state(phase)
+        np.testing.assert_allclose(tenv.loco_env.data.qpos, q, atol=1e-12)
+        np.testing.assert_allclose(tenv.loco_env.data.qvel, v, atol=1e-12)
+        assert obs.shape == (tenv.loco_env.obs_spec.dim + PHASE_FEATURES,)
+        np.testing.assert_allclose(obs[-2:], [np.sin(2 * np.pi * phase), np.cos(2 * np.pi * phase)])
+        _, r, *_ = tenv.step(np.zeros(env.model.nu))
+        assert 0.0 < r <= 1.0
+    assert len(set(np.round(phases, 6))) == 4                       # seeded, distinct phases
+    tenv.close()
+
+
+def test_eval_mode_starts_from_the_env_and_pays_the_task_reward(env, reference):
+    controller = TrackingController.for_model(env.model, reference, TrackingSettings(), env.dt)
+    tenv = TrackingEnv(TASK, controller.to_dict(), "eval")
+    tenv.reset(seed=0)
+    plain = LocoEnv.make(TASK)
+    plain.reset()
+    np.testing.assert_allclose(tenv.loco_env.data.qpos, plain.data.qpos)
+    assert tenv.controller.phase == reference.nearest_phase(plain.data.qpos)
+    _, r, _, _, info = tenv.step(np.zeros(env.model.nu))
+    assert r == pytest.approx(np.exp(-(info["reward_terms"]["x_velocity"] - 1.25) ** 2))
+    plain.stop()
+    tenv.close()
+
+
+def test_stable_pd_follows_the_reference_better_than_no_control(env, reference):
+    """Zero policy action = PD toward the reference: from RSI the robot stays up longer than with zero torque."""
+    settings = TrackingSettings(rsi_fraction=1.0, rsi_noise=0.0)
+    controller = TrackingController.for_model(env.model, reference, settings, env.dt)
+    assert (controller.kp > 0).all() and (controller.kd > 0).all()   # Atlas: torque motors
+    tenv = TrackingEnv(TASK, controller.to_dict(), "train")
+    tracked, limp = [], []
+    for seed in range(3):
+        tenv.reset(seed=seed)
+        state = np.concatenate(tenv.loco_env.get_sim_state())
+        for lengths, act in ((tracked, lambda: tenv.step(np.zeros(env.model.nu))),
+                             (limp, lambda: tenv.loco_env.step(np.zeros(env.model.nu)))):
+            tenv.reset(seed=seed)
+            n = 0
+            while n < 300:
+                out = act()
+                n += 1
+                if out[2]:
+                    break
+            lengths.append(n)
+        assert np.isfinite(state).all()
+    assert np.mean(tracked) > np.mean(limp)
+    tenv.close()
+
+
+@pytest.fixture(scope="module")
+def trained(tmp_path_factory):
+    """A tiny tracking run (2 iterations): files, resume and the shipped expert's format."""
+    from loco_il.experts.tracking.trainer import TrackingTrainer
+    out = tmp_path_factory.mktemp("tracking")
+    cfg = {"task": "Atlas.walk", "algo": "tracking", "total_steps": 1024, "num_envs": 2, "async": False,
+           "batch_size": 512, "minibatch_size": 256, "epochs": 1, "hidden": [32, 32], "activation": "elu",
+           "eval_interval": 512, "eval_episodes": 2, "snapshot_every": 0.5, "out_dir": str(out), "log_interval_s": 0}
+    summary = TrackingTrainer(dict(cfg)).train()
+    return out, cfg, summary
+
+
+def test_trainer_writes_tracking_experts_and_resumes(trained):
+    from loco_il.experts.policy import load_expert
+    from loco_il.experts.tracking.expert import TrackingExpert
+    from loco_il.experts.tracking.trainer import TrackingTrainer
+    out, cfg, summary = trained
+    assert summary["env_steps"] == 1024
+    best = load_expert(out / "best.pt")
+    assert isinstance(best, TrackingExpert) and best.obs_dim == 30 and best.act_dim == 10
+    assert len(list((out / "snapshots").glob("step_*.pt"))) >= 2
+    rows = [json.loads(line) for line in (out / "evals.jsonl").read_text().splitlines()]
+    assert all("terminated" in row for row in rows)
+    resumed = TrackingTrainer(dict(cfg, total_steps=1536))
+    assert resumed.step == 1024
+    np.testing.assert_array_equal(resumed.controller.reference.qpos, best.controller.reference.qpos)
+    assert resumed.train()["env_steps"] == 1536
+
+
+def test_tracking_expert_file_round_trip_and_env_level_use(trained, tmp_path):
+    from loco_il.experts.policy import load_expert
+    out, _, _ = trained
+    expert = load_expert(out / "final.pt")
+    copy = tmp_path / "copy.pt"
+    assert expert.save(copy) == expert.checksum()
+    again = load_expert(copy)
+    assert again.checksum() == expert.checksum()
+    env = LocoEnv.make(TASK)
+    actions = []
+    for e in (expert, again):
+        env.seed(3)
+        obs = env.reset()
+        e.start_episode(env, 3)
+        actions.append(e(obs))
+    np.testing.assert_array_equal(actions[0], actions[1])
+    assert np.all(np.abs(actions[0]) <= 1.0)
+    with pytest.raises(RuntimeError, match="start_episode"):
+        load_expert(copy)(obs)
+    # a changed reference changes the checksum (it is part of the datasets' cache key)
+    data = __import__("torch").load(copy, weights_only=True)
+    data["controller"]["kp"] = data["controller"]["kp"] * 2
+    __import__("torch").save(data, tmp_path / "tampered.pt")
+    with pytest.raises(ValueError, match="checksum mismatch"):
+        load_expert(tmp_path / "tampered.pt")
+    env.stop()
+
+
+def test_tracking_expert_records_a_replayable_perfect_dataset(trained, tmp_path, monkeypatch):
+    """The provider replays the first recorded episode from its start state and fails on any difference."""
+    out, _, _ = trained
+    monkeypatch.setenv("LOCO_IL_DATASETS", str(tmp_path))
+    env = LocoEnv.make(TASK)
+    data = env.create_dataset(expert_path=str(out / "final.pt"), n_episodes=2, verbose=False)
+    assert data.n_trajectories == 2 and data.actions.shape[1] == 10
+    assert np.abs(data.actions).max() <= 1.0
+    env.stop()
