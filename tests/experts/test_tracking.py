@@ -204,3 +204,30 @@ def test_tracking_expert_records_a_replayable_perfect_dataset(trained, tmp_path,
     assert data.n_trajectories == 2 and data.actions.shape[1] == 10
     assert np.abs(data.actions).max() <= 1.0
     env.stop()
+
+
+def test_train_py_imitates_a_tracking_expert_on_atlas(trained, tmp_path):
+    """The mission's command on a robot: `train.py task=Atlas.walk.perfect algo=lsiq`, its `perfect` dataset
+    generated from a tracking expert (here the tiny one above, installed through $LOCO_IL_EXPERTS)."""
+    import os
+    import shutil
+    import subprocess
+    import sys
+    from pathlib import Path
+    out, _, _ = trained
+    experts = tmp_path / "experts" / "Atlas.walk"
+    experts.mkdir(parents=True)
+    shutil.copy(out / "final.pt", experts / "expert.pt")
+    env = dict(os.environ, LOCO_IL_EXPERTS=str(tmp_path / "experts"), LOCO_IL_DATASETS=str(tmp_path / "datasets"),
+               WANDB_MODE="offline", OMP_NUM_THREADS="1")
+    root = Path(__file__).resolve().parents[2]
+    cmd = [sys.executable, "train.py", "task=Atlas.walk.perfect", "algo=lsiq", "n_steps=300", "eval.every=300",
+           f"results_dir={tmp_path / 'results'}", "dataset.n_episodes=2", "eval=quick", "logger=csv",
+           "algo.policy.hidden=[32,32]", "algo.params.critic_hidden=[32,32]", "algo.params.initial_replay_size=100",
+           "algo.params.batch_size=32", "algo.params.expert_batch_size=32", "hydra/job_logging=disabled"]
+    proc = subprocess.run(cmd, cwd=root, env=env, capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    run = tmp_path / "results" / "Atlas.walk.perfect" / "lsiq" / "seed0"
+    final = json.loads((run / "eval.json").read_text())
+    assert final["steps"] == 300 and final["task_id"] == "Atlas.walk.perfect"
+    assert list((tmp_path / "datasets" / "Atlas.walk").glob("perfect-n2-*.npz"))
