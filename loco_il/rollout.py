@@ -1,6 +1,9 @@
-"""Roll out a policy (random by default) on a Task-ID, print returns, optionally write an mp4.
+"""Roll out a policy (random by default, or an expert file) on a Task-ID, print returns, optionally write an mp4
+and a strip of frames.
 
     python -m loco_il.rollout --task Hopper.run.perfect --episodes 3 --video rollout.mp4
+    python -m loco_il.rollout --task Atlas.walk.perfect --expert runs/experts/Atlas.walk/seed0/best.pt \
+        --episodes 1 --max-steps 300 --strip docs/atlas_walk.png
 """
 from __future__ import annotations
 
@@ -18,6 +21,9 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--video", default=None, help="write the first episode to this mp4 file")
     parser.add_argument("--max-steps", type=int, default=None, help="cap on steps per episode")
+    parser.add_argument("--expert", default=None, help="an expert file (.pt) to roll out instead of random actions")
+    parser.add_argument("--strip", default=None, help="write evenly spaced frames of the first episode to this PNG")
+    parser.add_argument("--strip-frames", type=int, default=6)
     args = parser.parse_args(argv)
     os.environ.setdefault("MUJOCO_GL", "egl")
 
@@ -28,24 +34,34 @@ def main(argv: list[str] | None = None) -> None:
     print(f"{env.task_id}: obs dim {env.obs_spec.dim}, action dim {env.info.action_space.shape[0]}, "
           f"control dt {env.dt:.4f} s, horizon {env.info.horizon}")
     rng = np.random.default_rng(args.seed)
+    policy = None
+    if args.expert:
+        from loco_il.experts import load_expert
+        policy = load_expert(args.expert)
     returns = []
     for episode in range(args.episodes):
         start = time.perf_counter()
-        if episode == 0 and args.video:
-            result = record_episode(env, None, args.video, max_steps=args.max_steps)
+        if episode == 0 and (args.video or args.strip):
+            result = record_episode(env, policy, args.video, max_steps=args.max_steps, seed=args.seed,
+                                    strip=args.strip, strip_frames=args.strip_frames)
             total, steps = result["return"], result["steps"]
-            print(f"wrote {result['path']}")
+            print("wrote " + ", ".join(p for p in (result["path"], result["strip"]) if p))
         else:
-            env.reset()
+            env.seed(args.seed + episode)
+            obs = env.reset()
+            if hasattr(policy, "start_episode"):
+                policy.start_episode(env, args.seed + episode)
             total, steps = 0.0, 0
             for steps in range(1, (args.max_steps or env.info.horizon) + 1):
-                _, reward, absorbing, _ = env.step(rng.uniform(-1, 1, env.info.action_space.shape))
+                action = policy(obs) if policy is not None else rng.uniform(-1, 1, env.info.action_space.shape)
+                obs, reward, absorbing, _ = env.step(action)
                 total += reward
                 if absorbing:
                     break
         returns.append(total)
         print(f"episode {episode}: return {total:.2f} over {steps} steps ({time.perf_counter() - start:.2f} s)")
-    print(f"random policy: mean return {np.mean(returns):.2f} +- {np.std(returns):.2f} over {len(returns)} episodes")
+    who = args.expert or "random policy"
+    print(f"{who}: mean return {np.mean(returns):.2f} +- {np.std(returns):.2f} over {len(returns)} episodes")
 
 
 if __name__ == "__main__":

@@ -42,17 +42,24 @@ def render_frame(env: "LocoEnv") -> np.ndarray | None:
     return env._renderer.render().copy()
 
 
-def record_episode(env: "LocoEnv", policy: Callable[[np.ndarray], np.ndarray] | None, path: str | os.PathLike,
-                   max_steps: int | None = None, fps: int | None = None) -> dict:
-    """Run one episode (random actions if `policy` is None), write an mp4, return {'return', 'steps', 'path'}."""
+def record_episode(env: "LocoEnv", policy: Callable[[np.ndarray], np.ndarray] | None, path: str | os.PathLike | None,
+                   max_steps: int | None = None, fps: int | None = None, seed: int = 0,
+                   strip: str | os.PathLike | None = None, strip_frames: int = 6) -> dict:
+    """Run one episode from `env.seed(seed); env.reset()` (random actions if `policy` is None; a policy's
+    `start_episode(env, seed)` hook is called after the reset, as in dataset rollouts), write an mp4 to `path` and/or
+    a PNG strip of `strip_frames` evenly spaced frames to `strip`; return {'return', 'steps', 'path', 'strip'}."""
     import imageio
 
     previous = env.render_mode
     env.render_mode = "rgb_array"
+    env.seed(seed)
     obs = env.reset()
+    hook = getattr(policy, "start_episode", None)
+    if callable(hook):
+        hook(env, seed)
     frames, total, steps = [env.render()], 0.0, 0
     limit = max_steps or env.info.horizon
-    rng = np.random.default_rng(0)
+    rng = np.random.default_rng(seed)
     try:
         for steps in range(1, limit + 1):
             action = policy(obs) if policy is not None else rng.uniform(-1, 1, env.info.action_space.shape)
@@ -63,10 +70,21 @@ def record_episode(env: "LocoEnv", policy: Callable[[np.ndarray], np.ndarray] | 
                 break
     finally:
         env.render_mode = previous
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fps = fps or int(round(1.0 / env.dt))
-    tmp = path.with_name(f".{path.stem}.tmp{path.suffix}")
-    imageio.mimsave(tmp, frames, fps=fps, macro_block_size=1)
-    os.replace(tmp, path)
-    return {"return": total, "steps": steps, "path": str(path)}
+    out = {"return": total, "steps": steps, "path": None, "strip": None}
+    if path is not None:
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fps = fps or int(round(1.0 / env.dt))
+        tmp = path.with_name(f".{path.stem}.tmp{path.suffix}")
+        imageio.mimsave(tmp, frames, fps=fps, macro_block_size=1)
+        os.replace(tmp, path)
+        out["path"] = str(path)
+    if strip is not None:
+        strip = Path(strip)
+        strip.parent.mkdir(parents=True, exist_ok=True)
+        picks = np.linspace(0, len(frames) - 1, max(1, int(strip_frames))).round().astype(int)
+        tmp = strip.with_name(f".{strip.stem}.tmp{strip.suffix}")
+        imageio.imwrite(tmp, np.concatenate([frames[i] for i in picks], axis=1), extension=strip.suffix)
+        os.replace(tmp, strip)
+        out["strip"] = str(strip)
+    return out

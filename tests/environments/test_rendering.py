@@ -25,3 +25,21 @@ def test_record_episode_writes_a_playable_mp4(tmp_path):
     frames = iio.imread(out["path"])
     assert frames.shape[0] == out["steps"] + 1 and frames.shape[1:3] == (120, 160)
     assert not list(tmp_path.glob(".*tmp*"))      # written atomically: no temp file left behind
+
+
+def test_record_episode_writes_a_strip_of_frames_and_calls_the_start_hook(tmp_path):
+    class Zero:
+        started = None
+
+        def start_episode(self, env, seed):
+            self.started = seed
+
+        def __call__(self, obs):
+            return np.zeros(3)
+
+    env = LocoEnv.make("Hopper", render_size=(60, 80))
+    policy = Zero()
+    out = record_episode(env, policy, None, max_steps=10, seed=7, strip=tmp_path / "strip.png", strip_frames=4)
+    assert policy.started == 7 and out["path"] is None
+    strip = iio.imread(out["strip"])
+    assert strip.shape[:2] == (60, 4 * 80) and strip.std() > 5
