@@ -219,3 +219,17 @@ def test_locomujoco_result_survives_save_load(tmp_path):
     write_per_joint(tmp_path / "walk.npz")
     d = load_locomujoco_npz(tmp_path / "walk.npz")
     assert_same(Trajectories.load(d.save(tmp_path / "converted.npz")), d)
+
+
+def test_minari_recovers_the_loco_il_env(minari_dir, tmp_path, monkeypatch):
+    import minari
+    from loco_il import LocoEnv
+    monkeypatch.setenv("LOCO_IL_DATASETS", str(tmp_path / "datasets"))
+    env = LocoEnv.make("InvertedPendulum.balance.perfect")
+    data = env.create_dataset(n_episodes=2, verbose=False)
+    to_minari(data, "loco_il_test/pendulum-v0")
+    recovered = minari.load_dataset("loco_il_test/pendulum-v0").recover_environment()
+    obs, _ = recovered.reset(seed=0)
+    assert recovered.unwrapped.loco_env.task_id == "InvertedPendulum.balance.perfect"
+    assert obs.shape == (data.obs_dim,)
+    recovered.close()

@@ -113,6 +113,7 @@ def to_minari(
         minari.delete_dataset(dataset_id)
 
     if env is None:
+        env = _loco_env_spec(trajs.info.get("task_id"))
         if observation_space is None:
             observation_space = gym.spaces.Box(-np.inf, np.inf, (trajs.obs_dim,), dtype=trajs.obs.dtype)
         if action_space is None:
@@ -155,6 +156,25 @@ def to_minari(
         )
     dataset.storage.update_metadata({INFO_METADATA_KEY: _info_to_json(info)})
     return dataset
+
+
+def _loco_env_spec(task_id: Any) -> Any:
+    """The Gymnasium spec of ``gym.make("LocoMujoco", env_name=task_id)``, so that Minari's
+    ``recover_environment()`` rebuilds the env; None when ``task_id`` is no Task-ID of ours."""
+    import dataclasses
+
+    import gymnasium as gym
+
+    from loco_il.environments.gym_adapter import register_gymnasium
+    from loco_il.environments.registry import parse_task_id
+    if not isinstance(task_id, str) or not task_id:
+        return None
+    try:
+        parse_task_id(task_id)
+    except Exception:      # a dataset from elsewhere: record no env
+        return None
+    register_gymnasium()
+    return dataclasses.replace(gym.spec("LocoMujoco"), kwargs={"env_name": task_id})
 
 
 def from_minari(dataset_or_id: Any, *, info: Optional[Mapping[str, Any]] = None) -> Trajectories:
