@@ -161,8 +161,10 @@ def test_trainer_writes_tracking_experts_and_resumes(trained):
     assert len(list((out / "snapshots").glob("step_*.pt"))) >= 2
     rows = [json.loads(line) for line in (out / "evals.jsonl").read_text().splitlines()]
     assert all("terminated" in row for row in rows)
-    resumed = TrackingTrainer(dict(cfg, total_steps=1536))
-    assert resumed.step == 1024
+    with pytest.raises(ValueError, match="tracking.action_scale was 0.5, now 0.3"):
+        TrackingTrainer(dict(cfg, total_steps=1536, tracking={"action_scale": 0.3}))
+    resumed = TrackingTrainer(dict(cfg, total_steps=1536, tracking={"rsi_fraction": 0.5}))   # training-only: may change
+    assert resumed.step == 1024 and resumed.controller.settings.rsi_fraction == 0.5
     np.testing.assert_array_equal(resumed.controller.reference.qpos, best.controller.reference.qpos)
     assert resumed.train()["env_steps"] == 1536
 

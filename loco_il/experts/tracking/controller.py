@@ -171,6 +171,6 @@ class TrackingController:
 
     def digest_bytes(self) -> bytes:
         parts = [np.ascontiguousarray(getattr(self, k)).tobytes() for k in self.ARRAYS]
-        parts += [self.reference.digest_bytes(), repr(sorted(self.settings.to_dict().items())).encode(),
-                  repr(self.control_dt).encode()]
+        expert_settings = [(k, getattr(self.settings, k)) for k in self.settings.EXPERT_FIELDS]
+        parts += [self.reference.digest_bytes(), repr(expert_settings).encode(), repr(self.control_dt).encode()]
         return b"".join(parts)

@@ -26,8 +26,9 @@ class TrackingSettings:
     k_ee: float = 40.0
     k_root: float = 10.0
     # start states: a fraction of training episodes start in the reference state at a uniform random phase
-    # (RSI), the rest from the env's own start (standing; ours: the expert must also start from there)
-    rsi_fraction: float = 0.8
+    # (RSI), the rest from the env's own start (standing; ours: the expert must also start from there; with 0.8,
+    # Atlas after 0.8M steps walked from reference states but fell within 1.5 s of every standing start)
+    rsi_fraction: float = 0.5
     rsi_noise: float = 0.02      # uniform noise on RSI joint positions (rad or m) and velocities (ours)
     # early termination: the task's fall rule, plus the root drifting this far (m) from the reference (ours)
     max_root_error: float = 0.6
@@ -39,6 +40,18 @@ class TrackingSettings:
     damping_ratio: float = 1.0   # kd = ratio * 2 sqrt(kp * I), I the joint's own inertia at the reference pose
     ramp_time: float = 0.5       # s over which PD targets blend from the start state into the reference (ours)
     target_speed: float | None = None   # time-scale the reference to this speed (None: the task's target)
+
+    #: what the shipped expert's actions depend on (fixed for a run); the other fields only shape training
+    EXPERT_FIELDS = ("action_scale", "kp_angle", "damping_ratio", "ramp_time", "target_speed")
+
+    def for_resume(self, current: "TrackingSettings") -> "TrackingSettings":
+        """These (a checkpoint's) settings with `current`'s training-only fields (reward, start states, early
+        termination may change when a run is resumed); ValueError naming an expert field that differs."""
+        for name in self.EXPERT_FIELDS:
+            if getattr(self, name) != getattr(current, name):
+                raise ValueError(f"cannot resume: tracking.{name} was {getattr(self, name)!r}, now "
+                                 f"{getattr(current, name)!r} (it changes the expert's actions; use another out_dir)")
+        return current
 
     @classmethod
     def from_mapping(cls, values: Mapping[str, Any] | None) -> "TrackingSettings":

@@ -76,8 +76,11 @@ class TrackingTrainer(PPOTrainer):
         return {**super().learner_state(), "controller": self.controller.to_dict()}
 
     def load_learner_state(self, state: Mapping[str, Any]) -> None:
+        """The checkpoint's reference and gains; its training-only settings give way to this run's config."""
         state = dict(state)
-        self.controller = TrackingController.from_dict(state.pop("controller"))
+        controller = TrackingController.from_dict(state.pop("controller"))
+        controller.settings = controller.settings.for_resume(TrackingSettings.from_mapping(self.cfg.tracking))
+        self.controller = controller
         super().load_learner_state(state)
 
     def make_envs(self, num_envs: int, purpose: str):
