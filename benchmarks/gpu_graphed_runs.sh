@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Whole CUDA-graphed training runs on a lent GPU machine (issue #5; results in benchmarks/RESULTS.md,
-# "CUDA on a lent GPU machine"). Run from the repository root with torch (CUDA build) and the project's
+# Whole CUDA-graphed training runs on a GPU machine (issue #5; results in benchmarks/RESULTS.md,
+# "GPU: whole training runs" and "GPU: graphed long runs"). Run from the repository root with torch (CUDA build) and the project's
 # dependencies importable; writes its outputs to $OUT (default /tmp/gpu_graphed_runs):
 #   cuda_tests.txt          the CUDA tests (pytest -k cuda)
 #   train_speed_<algo>.txt  one graphed run alone per algorithm, benchmarks/train_speed.py --seconds $SPEED_S

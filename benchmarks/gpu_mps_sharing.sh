@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Do several graphed training runs share one GPU better under CUDA's multi-process service (MPS)? (issue #5;
-# results in benchmarks/RESULTS.md, "Four graphed runs sharing one GPU under MPS".) Without MPS the GPU
-# time-slices between the runs' processes, and four graphed runs made less in sum than two ("Whole graphed runs",
-# twenty-seventh session). This times the same group of runs twice in one call, first without MPS, then with an
+# results in benchmarks/RESULTS.md, "GPU: several runs on one GPU".) Without MPS the GPU
+# time-slices between the runs' processes, and four graphed runs made less in sum than two (RESULTS.md,
+# "GPU: whole training runs"). This times the same group of runs twice in one call, first without MPS, then with an
 # MPS server started here (benchmarks/mps.sh), with benchmarks/train_speed.py, and writes both tables to
 # $OUT/mps_sharing.txt.
 #

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The imitation-learning runs at the papers' budgets on Hopper.run.perfect, through train.py, so that they
 # checkpoint and resume: re-running this script (or one of its lines) continues every run from its last
-# checkpoint, so a run can span several sittings. Results: one row per evaluation in each run dir's log.csv;
+# checkpoint, so a run can be stopped and resumed any number of times. Results: one row per evaluation in each run dir's log.csv;
 # `python -m loco_il.evaluation.progress $RESULTS` shows where every run stands (last evaluation, hours
 # left); `python -m loco_il.evaluation.leaderboard $RESULTS` tabulates the finished ones.
 #

@@ -3,7 +3,7 @@
 #     ... CUDA processes started from this shell now share the GPU through the server ...
 #     stop_mps
 # Without MPS the GPU takes the processes in turns: four graphed runs side by side made 3.37x more env steps
-# under MPS than without it (benchmarks/RESULTS.md, "Four graphed runs sharing one GPU under MPS"). The pipe and
+# under MPS than without it (benchmarks/RESULTS.md, "GPU: several runs on one GPU"). The pipe and
 # log folders are in /tmp (the driver's folder may be a read-only mount); a CUDA process finds the server through
 # CUDA_MPS_PIPE_DIRECTORY, exported here. Every step has a timeout, so a machine without MPS costs seconds.
 export CUDA_MPS_PIPE_DIRECTORY=${CUDA_MPS_PIPE_DIRECTORY:-/tmp/mps_pipe}

@@ -35,10 +35,10 @@ training details; r_max/Q_max follow the derivation above with the brief's c = 0
 The default, `objective="fixed_expert"`, is instead the objective of the authors' released MuJoCo runs
 (their code, github.com/robfiras/ls-iq, examples/01_LSIQ: the "sqil_like" loss with loss_mode_exp="fix" and
 plcy_loss_mode="value"): see `lsiq_fixed_expert_loss`. Their runs also fix the temperature at 1e-3 (our
-config does too), use one critic (so do we since the fifteenth session: `n_critics=1`; `n_critics=2` is SAC's
+config does too), use one critic (so do we: `n_critics=1`; `n_critics=2` is SAC's
 twin critic) and clamp log std at -5 (`policy.log_std_bounds=[-5, 2]`; our default keeps SAC's [-20, 2]), and
 ran without the absorbing-state treatment (V(s_A) = 0); we keep the paper's treatment, which learned
-InvertedPendulum where V(s_A) = 0 did not (benchmarks/RESULTS.md). `objective="mixture"` (the derivation above) was the default until the sixth session:
+InvertedPendulum where V(s_A) = 0 did not (benchmarks/RESULTS.md). `objective="mixture"` (the derivation above) is not the default:
 on Hopper it scored 0.17 and 0.06 at 50k steps where fixed_expert scored 0.22 and 0.90.
 
 LSIQ-fO (the paper's learning-from-observations variant): an inverse dynamics model

@@ -1,7 +1,7 @@
 """Where long runs stand: `python -m loco_il.evaluation.progress runs/`.
 
 The leaderboard only counts finished runs (those with an `eval.json`). Runs at the papers' budgets take
-many sittings on a small machine (they resume from `checkpoint.pt`), so this prints one row per run dir
+days on a small machine and are stopped and resumed many times (from `checkpoint.pt`), so this prints one row per run dir
 below the folder, finished or not: its budget, the last evaluation logged in `log.csv` (step, return,
 normalized score), the training speed of the last interval and, for unfinished runs, the wall time the
 rest of the budget needs at that speed, and the step a re-run resumes from (its last checkpoint, from the

@@ -21,7 +21,7 @@ on: by the current policy, or with `refill_from=<folder>` by the policy files th
 `snapshots/`), in the order of their step, each sampling an equal share of the steps: closer to the lost
 memory, which held the run's whole history, falls included. Neither is the lost memory: a Humanoid run at
 650k steps (eval 4781) fell to ~400 within 50k steps after a 10k-step refill by its current policy, and to
-~1000 after a 150k-step refill by either source (benchmarks/RESULTS.md, eighth session).
+~1000 after a 150k-step refill by either source (benchmarks/RESULTS.md, "Experts", "Resuming without the replay memory").
 
 `alive_bonus` shapes the training reward only (the logged returns, evaluations and datasets keep the env's
 reward). It matters for tasks whose reward is small and bounded, like the robots' velocity tracking

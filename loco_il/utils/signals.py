@@ -1,6 +1,6 @@
 """Graceful stops for long training loops: SIGINT/SIGTERM ask the loop to stop at its next safe point.
 
-Long runs span several sittings: a session that ends sends SIGTERM, a user presses Ctrl-C. Instead of
+Long runs are stopped and resumed: a machine that shuts down sends SIGTERM, a user presses Ctrl-C. Instead of
 dying mid-iteration (and losing everything since the last checkpoint), the loop checks `flag.signal`
 after each iteration, writes a checkpoint and exits; a second Ctrl-C stops at once, without a checkpoint.
 """

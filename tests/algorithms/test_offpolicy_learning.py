@@ -100,14 +100,14 @@ ENV_STEPS = 5000
 CASES = {  # name: (class, extra kwargs, env steps)
     "iqlearn": (IQLearn, {}, ENV_STEPS),
     # LS-IQ's default objective (the released runs' "fixed_expert") learns this task more slowly. With the
-    # twin critic (the default until the fifteenth session) 2 of 4 seeds balanced after 10000 steps, all 4 after
-    # 15000; with one critic (the default since) seeds 0-3 balance after 10000 steps, seeds 1-5 after 15000, and
+    # twin critic (n_critics=2) 2 of 4 seeds balanced after 10000 steps, all 4 after
+    # 15000; with one critic (the default) seeds 0-3 balance after 10000 steps, seeds 1-5 after 15000, and
     # seed 0 had fallen again at 15000 and balanced at 20000 (benchmarks/RESULTS.md)
     "lsiq": (LSIQ, {}, 2 * ENV_STEPS),
     "lsiq_twin_critic": (LSIQ, dict(n_critics=2), 3 * ENV_STEPS),
     "lsiq_mixture": (LSIQ, dict(objective="mixture"), ENV_STEPS),
     "lsiqfo": (LSIQfO, dict(idm_hidden=(64, 64)), 3 * ENV_STEPS),  # the same default objective; one critic:
-    # seeds 0 and 1 balanced after 10000 steps in one uninterrupted Core.learn (mujoco 4.0, earlier sessions);
+    # seeds 0 and 1 balanced after 10000 steps in one uninterrupted Core.learn (mujoco 4.0);
     # evaluated every 2500 steps with mujoco 3.17, seed 0 had 209 at 10000
     "sqil": (SQIL, {}, ENV_STEPS),
 }

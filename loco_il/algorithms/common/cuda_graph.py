@@ -2,7 +2,7 @@
 
 Why: the SAC-based updates of small networks are bound by kernel launches on a GPU. One update of [256, 256]
 networks on 512 rows launches a few hundred small kernels from one CPU thread and took 6-9 ms on an H200; the
-same update replayed from a CUDA graph took ~1 ms (benchmarks/RESULTS.md, "CUDA on a lent GPU machine").
+same update replayed from a CUDA graph took ~1 ms (benchmarks/RESULTS.md, "GPU: CUDA tests and one update").
 
 What a captured step needs, and how the off-policy agents provide it:
   * fixed shapes and tensors that stay at their addresses: the replay memory and the networks are
