@@ -1,6 +1,7 @@
 """What a robot module declares: where its model comes from and what is specific to it.
 
-A new robot is one module that builds a `Body` and calls `register_body`; nothing else changes.
+A new robot is one module that builds a `Body` and calls `register_body`, plus the few places listed in
+docs/adding-a-robot.md (its import, a keypoint map for `real` data, baselines, expert settings).
 """
 from __future__ import annotations
 
