@@ -318,8 +318,8 @@ class PPOTrainer(ExpertTrainer):
     def iterate(self) -> dict[str, float]:
         """One rollout and one PPO update (learning rate decayed linearly over the budget)."""
         cfg = self.cfg
-        if cfg.lr_decay:
-            self.agent.set_lr(cfg.lr * max(0.0, 1.0 - self.step / cfg.total_steps))
+        # set every iteration: a resumed run takes this config's rate, not the one stored with the optimizer
+        self.agent.set_lr(cfg.lr * (max(0.0, 1.0 - self.step / cfg.total_steps) if cfg.lr_decay else 1.0))
         t0 = time.perf_counter()
         batch = self.collect()
         self.collect_time += time.perf_counter() - t0

@@ -279,3 +279,11 @@ def test_per_body_config_sits_between_train_yaml_and_command_line():
     assert hopper["num_steps"] is None and hopper["lr"] == 3e-4
     assert TrainConfig.from_mapping(hopper).steps_per_env == 128               # 2048 / 16 envs
     assert TrainConfig.from_mapping(dict(hopper, num_envs=2)).steps_per_env == 1024
+
+
+def test_a_resumed_run_takes_the_learning_rate_of_its_new_config(tmp_path):
+    out = tmp_path / "run"
+    PPOTrainer(small_cfg(out, total_steps=1024, lr=1e-3, lr_decay=False), log=quiet).train()
+    resumed = PPOTrainer(small_cfg(out, total_steps=1536, lr=2e-4, lr_decay=False), log=quiet)
+    resumed.train()
+    assert {g["lr"] for g in resumed.agent.pi_opt.param_groups} == {2e-4}
