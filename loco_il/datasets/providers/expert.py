@@ -150,14 +150,15 @@ def expert_search_path() -> list[Path]:
 
 
 def task_key(env_or_id: Any) -> str:
-    """``<Body>[-<variant>].<task>`` of an env or a Task-ID (dataset type and ``.pomdp`` dropped)."""
+    """``<Body>[-<variant>].<task>[.<mode>]`` of an env or a Task-ID (dataset type and ``.pomdp`` dropped)."""
     if isinstance(env_or_id, str):
         from loco_il.environments.registry import parse_task_id
         tid = parse_task_id(env_or_id)
-        body, variant, task = tid.body, tid.variant, tid.task
+        body, variant, task, mode = tid.body, tid.variant, tid.task, tid.mode
     else:
         body, variant, task = env_or_id.body_name, getattr(env_or_id, "variant", None), env_or_id.task_name
-    return f"{body}{'-' + variant if variant else ''}.{task}"
+        mode = getattr(env_or_id, "mode", None)
+    return f"{body}{'-' + variant if variant else ''}.{task}{'.' + mode if mode else ''}"
 
 
 def available_experts() -> list[str]:
