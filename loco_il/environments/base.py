@@ -216,6 +216,11 @@ class LocoEnv(Environment):
         self._adopt(self._draw_models[index])
 
     @property
+    def draw_indices(self) -> tuple[int, ...]:
+        """Indices of the draw's values this env's mode draws from (empty without a draw)."""
+        return tuple(self._draw_indices)
+
+    @property
     def drawn_index(self) -> int | None:
         """Index of the current version of the model among the draw's values (None without a draw)."""
         return self._drawn if self.draw is not None else None
