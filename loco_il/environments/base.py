@@ -250,9 +250,12 @@ class LocoEnv(Environment):
         self._mass_fraction = self.model.body_mass / self.model.body_mass.sum()
         self._point_body = (mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, self.task.velocity_point)
                             if self.task.velocity_point not in ("root", "com") else self._root_body)
-        if getattr(self, "_renderer", None) is not None:   # the renderer is bound to the old model
+        if getattr(self, "_renderer", None) is not None:   # the renderer and viewer are bound to the old model
             self._renderer.close()
             self._renderer = None
+        if getattr(self, "_viewer", None) is not None:
+            self._viewer.close()
+            self._viewer = None
 
     def randomize(self) -> None:
         """Draw new physical parameters: edit a copy of the base spec and recompile."""

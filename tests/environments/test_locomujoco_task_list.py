@@ -106,6 +106,17 @@ def test_ages_scale_the_model_and_the_target_speed():
         assert gear == pytest.approx(adult[2] * scale ** 2)
 
 
+def test_ages_start_from_dataset_states_of_the_drawn_size(tmp_path, monkeypatch):
+    from loco_il.datasets.providers import dataset_init_state_sampler
+    monkeypatch.setenv("LOCO_IL_DATASETS", str(tmp_path))
+    env = LocoEnv.make("HumanoidTorque4Ages.walk.all.real", seed=0)
+    data = env.create_dataset(clips=SHORT_CLIP, verbose=False)
+    env.init_state_sampler = dataset_init_state_sampler(env=env, trajs=data)
+    for _ in range(8):
+        env.reset()
+        assert env.data.xpos[1, 2] == pytest.approx(0.975 * env.command[0], abs=0.05)   # the pelvis of that size
+
+
 def test_ages_all_draws_every_size():
     env = LocoEnv.make("HumanoidMuscle4Ages.run.all.real", seed=0)
     drawn = set()
