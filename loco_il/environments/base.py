@@ -89,7 +89,8 @@ class LocoEnv(Environment):
     """A locomotion MDP for one body and task. Create it from a Task-ID with `LocoEnv.make`."""
 
     def __init__(self, body: Body, task: str, dataset_type: str, *, variant: str | None = None,
-                 mode: str | None = None, pomdp: bool = False, hide: Sequence[str] = (), reward: RewardFn | None = None,
+                 mode: str | None = None, pomdp: bool = False, hide: Sequence[str] = (),
+                 reward: RewardFn | None = None,
                  randomization: Any = None, randomize_every: int = 1, seed: int | None = None,
                  render_mode: str | None = None, horizon: int | None = None,
                  init_state_sampler: InitStateSampler | None = None,

@@ -107,10 +107,10 @@ def parse_task_id(task_id: str) -> TaskID:
                                f"{_suggest(task_id, candidates)}")
     modes = body.modes(task)
     if mode is not None and mode not in modes:
-        raise UnknownTaskError(
-            f"unknown Task-ID {task_id!r}: " + (f"{body_name}.{task} has no mode part; drop {mode!r}" if modes == (None,)
-                                                else f"mode {mode!r} of {body_name}.{task} is not one of "
-                                                     f"{', '.join(modes)} (e.g. {body_name}.{task}.{modes[0]}.{dataset})"))
+        why = (f"{body_name}.{task} has no mode part; drop {mode!r}" if modes == (None,) else
+               f"mode {mode!r} of {body_name}.{task} is not one of {', '.join(modes)} "
+               f"(e.g. {body_name}.{task}.{modes[0]}.{dataset})")
+        raise UnknownTaskError(f"unknown Task-ID {task_id!r}: {why}")
     if mode is None and modes != (None,):
         mode = body.tasks[task].draw.default_mode
     if dataset not in body.datasets:

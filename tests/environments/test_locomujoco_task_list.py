@@ -41,7 +41,8 @@ def test_makes_resets_steps_with_locomujoco_sizes(task_id):
     env = LocoEnv.make(task_id, seed=0)
     assert env.task_id == task_id
     obs = env.reset()
-    assert (obs.shape, env.info.action_space.shape) == ((LOCOMUJOCO_TASKS[task_id][0],), (LOCOMUJOCO_TASKS[task_id][1],))
+    obs_dim, act_dim = LOCOMUJOCO_TASKS[task_id]
+    assert (obs.shape, env.info.action_space.shape) == ((obs_dim,), (act_dim,))
     obs, reward, absorbing, _ = env.step(np.zeros(env.info.action_space.shape))
     assert obs.shape == env.info.observation_space.shape and 0.0 < reward <= 1.0
 

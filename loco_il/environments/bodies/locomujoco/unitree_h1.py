@@ -58,7 +58,8 @@ def _edit(spec) -> None:
     add_keyframe(spec, STAND_POSE, STAND_KEY)
 
 
-TASKS = {**humanoid_tasks(TERMINATION, run=True, robot="UnitreeH1"), "carry": carry_task(TERMINATION, "UnitreeH1", LOAD)}
+TASKS = {**humanoid_tasks(TERMINATION, run=True, robot="UnitreeH1"),
+         "carry": carry_task(TERMINATION, "UnitreeH1", LOAD)}
 UNITREE_H1 = locomujoco_body("UnitreeH1", MODEL, TASKS,
                              "locomujoco/unitree_h1", _edit,
                              joints_to_remove=REMOVED_JOINTS, actuators_to_remove=REMOVED_ACTUATORS)
