@@ -287,7 +287,8 @@ def real_provider(env: Any, *, clips: Optional[Iterable[Any]] = None, options: A
 
     ``clips``: motion files (paths relative to the mocap folder, absolute paths or :class:`ClipSpec`)
     instead of the task's; ``options``: a :class:`~loco_il.datasets.mocap.retarget.RetargetOptions`
-    (or a dict of its fields); ``n_episodes``: keep the first n clips.  ``generation_seed`` is
+    (or a dict of its fields); ``n_episodes``: keep the first n clips (a task with a draw gets each clip once per
+    version its mode draws from).  ``generation_seed`` is
     accepted and ignored (retargeting is deterministic).
     """
     import mujoco
@@ -311,7 +312,8 @@ def real_provider(env: Any, *, clips: Optional[Iterable[Any]] = None, options: A
     specs = _as_specs(clips, env.task_name, task_id)
     if n_episodes is not None:
         if not 1 <= int(n_episodes) <= len(specs):
-            raise ValueError(f"n_episodes must be between 1 and {len(specs)} (one episode per clip) for {task_id}")
+            raise ValueError(f"n_episodes must be between 1 and {len(specs)} (the clips kept; one episode per clip, "
+                             f"per drawn version for tasks that draw one) for {task_id}")
         specs = specs[:int(n_episodes)]
     if options is None:
         opts = RetargetOptions()

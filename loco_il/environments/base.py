@@ -118,8 +118,9 @@ class LocoEnv(Environment):
         self.randomization = randomization
         self.randomize_every = max(1, int(randomize_every))
         self._episodes = 0
-        if self.draw is not None:
-            self.select_draw(self._draw_indices[0])
+        if self.draw is not None:   # until the first reset: the reference version if the mode draws it
+            ref = self.draw.reference
+            self.select_draw(ref if ref in self._draw_indices else self._draw_indices[0])
         else:
             self._compile(self.base_spec)
 
