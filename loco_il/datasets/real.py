@@ -22,9 +22,15 @@ this module on first use of a `real` dataset).  For the env's task it
 Tasks with motion: ``walk`` (DeepMimic ``humanoid3d_walk`` repeated to 10 s; CMU subject 131
 trial 01 from 4.5 s (a straight walk and stop; before, the subject turns round) and trial 02 from
 2 s to 9 s (a slow walk, without the turns at both ends)), ``run`` (DeepMimic ``humanoid3d_run`` and
-``humanoid3d_jog``, each repeated to 10 s).  Other tasks (``stand``, ``carry``, quadruped
-tasks) have no motion here: a clear error says so.  Bodies need a keypoint map (every humanoid
-has one).
+``humanoid3d_jog``, each repeated to 10 s), ``carry`` (the walking clips: the humanoid carried nothing,
+the robot's load is the task's).  Other tasks (``stand``, quadruped tasks) have no motion here: a clear
+error says so.  Bodies need a keypoint map (every humanoid has one).
+
+Tasks that draw a version of the model per episode (``env.draw``: the carried mass of ``carry``, the
+body size of the 4Ages humanoids) get every clip once per version the Task-ID's mode draws from, in
+the order of the versions: the motion is retargeted to the draw's reference version and carried to
+each version by the draw's ``state_map`` (4Ages: root slides scaled by the size), the observation's
+draw entries are that version's.
 """
 from __future__ import annotations
 
@@ -77,6 +83,7 @@ TASK_CLIPS: dict[str, tuple[ClipSpec, ...]] = {
     "run": (ClipSpec("deepmimic/humanoid3d_run.txt", duration=10.0),
             ClipSpec("deepmimic/humanoid3d_jog.txt", duration=10.0)),
 }
+TASK_CLIPS["carry"] = TASK_CLIPS["walk"]     # LocoMuJoCo's carry datasets are its walking datasets too
 
 #: licence / provenance line per source folder (from shared/README.md)
 PROVENANCE = {
@@ -196,6 +203,9 @@ def retarget_task(env: Any, specs: Sequence[ClipSpec], paths: Sequence[Path], op
     from loco_il.datasets.mocap.retarget import RobotKinematics, retarget_clip, result_to_trajectories
     from loco_il.datasets.providers.expert import InitStates
 
+    draw = getattr(env, "draw", None)
+    if draw is not None:
+        env.select_draw(draw.reference)
     kin = RobotKinematics(env)
     results = []
     for spec, path in zip(specs, paths):
@@ -211,11 +221,48 @@ def retarget_task(env: Any, specs: Sequence[ClipSpec], paths: Sequence[Path], op
                  f"keypoint error {m['keypoint_error_m']:.3f} m, "
                  f"foot sliding {m['foot_sliding_mps']:.3f} m/s, penetration {m['penetration_max_m']:.4f} m (max), "
                  f"joints in limits {100 * m['in_limits_fraction']:.1f}% of frames")
+    if draw is not None:
+        data, init = _per_version(env, results)
+        return data, init, results
     env.reset()
     data = result_to_trajectories(env, results)
     init = InitStates(np.stack([r.qpos[0] for r in results]), np.stack([r.qvel[0] for r in results]),
                       np.full(len(results), -1, dtype=np.int64))
     return data, init, results
+
+
+def _per_version(env: Any, results: Sequence[Any]) -> tuple[Trajectories, Any]:
+    """Every retargeted clip on every version of the model the env's mode draws from (see the module doc)."""
+    from dataclasses import replace
+
+    from loco_il.datasets.mocap.retarget import result_to_trajectories
+    from loco_il.datasets.providers.expert import InitStates
+
+    draw, parts, mapped_all = env.draw, [], []
+    for index in env.draw_indices:
+        env.select_draw(index)
+        value = draw.values[index]
+        mapped = []
+        for r in results:
+            qpos, qvel = r.qpos, r.qvel
+            if draw.state_map is not None:
+                pairs = [draw.state_map(env.model, q, v, value) for q, v in zip(qpos, qvel)]
+                qpos, qvel = np.stack([p[0] for p in pairs]), np.stack([p[1] for p in pairs])
+            mapped.append(replace(r, qpos=qpos, qvel=qvel))
+        parts.append(result_to_trajectories(env, mapped))
+        mapped_all += mapped
+    info = dict(parts[0].info)
+    for key in ("episode_metrics", "episode_sources", "episode_returns"):
+        info[key] = [x for p in parts for x in p.info[key]]
+    fractions = [p.info["terminated_fraction"] for p in parts]
+    if None not in fractions:
+        info["terminated_fraction"] = float(np.average(fractions, weights=[p.n_transitions for p in parts]))
+    info["episode_draw_values"] = [float(draw.values[i]) for i in env.draw_indices for _ in results]
+    info["draw_entries"] = list(draw.names)
+    data = Trajectories.concatenate(parts, info=info)
+    init = InitStates(np.stack([r.qpos[0] for r in mapped_all]), np.stack([r.qvel[0] for r in mapped_all]),
+                      np.full(len(mapped_all), -1, dtype=np.int64))
+    return data, init
 
 
 def _quality(results: Sequence[Any]) -> dict:
@@ -240,7 +287,8 @@ def real_provider(env: Any, *, clips: Optional[Iterable[Any]] = None, options: A
 
     ``clips``: motion files (paths relative to the mocap folder, absolute paths or :class:`ClipSpec`)
     instead of the task's; ``options``: a :class:`~loco_il.datasets.mocap.retarget.RetargetOptions`
-    (or a dict of its fields); ``n_episodes``: keep the first n clips.  ``generation_seed`` is
+    (or a dict of its fields); ``n_episodes``: keep the first n clips (a task with a draw gets each clip once per
+    version its mode draws from).  ``generation_seed`` is
     accepted and ignored (retargeting is deterministic).
     """
     import mujoco
@@ -264,7 +312,8 @@ def real_provider(env: Any, *, clips: Optional[Iterable[Any]] = None, options: A
     specs = _as_specs(clips, env.task_name, task_id)
     if n_episodes is not None:
         if not 1 <= int(n_episodes) <= len(specs):
-            raise ValueError(f"n_episodes must be between 1 and {len(specs)} (one episode per clip) for {task_id}")
+            raise ValueError(f"n_episodes must be between 1 and {len(specs)} (the clips kept; one episode per clip, "
+                             f"per drawn version for tasks that draw one) for {task_id}")
         specs = specs[:int(n_episodes)]
     if options is None:
         opts = RetargetOptions()
@@ -277,12 +326,16 @@ def real_provider(env: Any, *, clips: Optional[Iterable[Any]] = None, options: A
     key = task_key(env)
     gen_env = generation_env(env, key)
     try:
+        if gen_env.draw is not None:     # the motion is retargeted to the draw's reference version
+            gen_env.select_draw(gen_env.draw.reference)
         fields = {
             "generator": REAL_GENERATOR_VERSION, "retarget": RETARGET_VERSION, "task": key, "dataset_type": "real",
             "clips": [dict(asdict(s), sha256=file_sha256(p)) for s, p in zip(specs, paths)],
             "options": opts.key(), "model": _model_fingerprint(gen_env.model), "mujoco": mujoco.__version__,
             "map": repr(ROBOT_MAPS[env.body_name]),
         }
+        if gen_env.draw is not None:
+            fields["draw"] = {"values": list(gen_env.draw.values), "indices": list(gen_env.draw_indices)}
         hkey = cache_key(fields)
         safe = "".join(c if c.isalnum() or c in "-_." else "_" for c in key)
         path = datasets_cache_dir() / safe / f"real-n{len(specs)}-{hkey}.npz"

@@ -79,11 +79,18 @@ def remove_elements(spec: mujoco.MjSpec, joints: Sequence[str], actuators: Seque
         spec.delete(key)
 
 
+def _compile_spec(spec: mujoco.MjSpec) -> mujoco.MjModel:
+    with warnings.catch_warnings():  # Gymnasium's humanoid.xml uses the deprecated `settotalmass`
+        warnings.filterwarnings("ignore", message=".*settotalmass.*")
+        return spec.compile()
+
+
 class LocoEnv(Environment):
     """A locomotion MDP for one body and task. Create it from a Task-ID with `LocoEnv.make`."""
 
     def __init__(self, body: Body, task: str, dataset_type: str, *, variant: str | None = None,
-                 pomdp: bool = False, hide: Sequence[str] = (), reward: RewardFn | None = None,
+                 mode: str | None = None, pomdp: bool = False, hide: Sequence[str] = (),
+                 reward: RewardFn | None = None,
                  randomization: Any = None, randomize_every: int = 1, seed: int | None = None,
                  render_mode: str | None = None, horizon: int | None = None,
                  init_state_sampler: InitStateSampler | None = None,
@@ -101,16 +108,26 @@ class LocoEnv(Environment):
         self.init_state_sampler = init_state_sampler
         self._rng = np.random.default_rng(seed)
         self._seed = seed
+        self.draw = self.task.draw
+        self.mode = self._check_mode(mode)
+        self._draw_indices = self.draw.indices(self.mode) if self.draw is not None else ()
+        self._draw_models: dict[int, mujoco.MjModel] = {}   # drawn version -> its compiled model
+        self._command = np.zeros(0)
 
         self.base_spec = self._build_spec()
         self.randomization = randomization
         self.randomize_every = max(1, int(randomize_every))
         self._episodes = 0
-        self._compile(self.base_spec)
+        if self.draw is not None:   # until the first reset: the reference version if the mode draws it
+            ref = self.draw.reference
+            self.select_draw(ref if ref in self._draw_indices else self._draw_indices[0])
+        else:
+            self._compile(self.base_spec)
 
         layout = self._layout
-        command_names = tuple(self.task.command_names)
-        self.full_obs_spec: ObservationSpec = observation_spec(layout, command_names)
+        command_names = tuple(self.draw.names if self.draw is not None else self.task.command_names)
+        group = self.draw.group if self.draw is not None else self.task.command_group
+        self.full_obs_spec: ObservationSpec = observation_spec(layout, command_names, group)
         hide_groups = tuple(body.pomdp_hide) if pomdp else ()
         hidden_names = tuple(h for h in hide if h not in set(self.full_obs_spec.groups))
         hidden_groups = hide_groups + tuple(h for h in hide if h in set(self.full_obs_spec.groups))
@@ -125,7 +142,6 @@ class LocoEnv(Environment):
                            Box(-np.ones(act_dim), np.ones(act_dim)), gamma=0.99, horizon=horizon,
                            dt=self.dt)
         super().__init__(mdp_info)
-        self._command = np.zeros(0)
         self._steps = 0
         self._needs_reset = True
         self._last_obs = np.zeros(obs_dim)
@@ -147,7 +163,20 @@ class LocoEnv(Environment):
     @property
     def task_id(self) -> str:
         body = self.body_name + (f"-{self.variant}" if self.variant else "")
-        return f"{body}.{self.task_name}.{self.dataset_type}" + (".pomdp" if self.pomdp else "")
+        task = self.task_name + (f".{self.mode}" if self.mode else "")
+        return f"{body}.{task}.{self.dataset_type}" + (".pomdp" if self.pomdp else "")
+
+    def _check_mode(self, mode: str | None) -> str | None:
+        modes = self.draw.modes if self.draw is not None else {}
+        if not modes:
+            if mode is not None:
+                raise ValueError(f"{self.body_name}.{self.task_name} has no modes, got mode {mode!r}; drop it")
+            return None
+        if mode is None:
+            return self.draw.default_mode
+        if mode not in modes:
+            raise ValueError(f"{self.body_name}.{self.task_name} has modes {', '.join(modes)}, not {mode!r}")
+        return mode
 
     def _build_spec(self) -> mujoco.MjSpec:
         spec = self.body.load_spec()
@@ -166,9 +195,41 @@ class LocoEnv(Environment):
 
     def _compile(self, spec: mujoco.MjSpec) -> None:
         """(Re)compile the model; everything derived from it (inertia, layout, ranges) follows."""
-        with warnings.catch_warnings():  # Gymnasium's humanoid.xml uses the deprecated `settotalmass`
-            warnings.filterwarnings("ignore", message=".*settotalmass.*")
-            self.model = spec.compile()
+        self._adopt(_compile_spec(spec))
+
+    def _version_spec(self, index: int) -> mujoco.MjSpec:
+        """The spec of the drawn version `index` (a copy of the base spec with the draw's edit)."""
+        spec = self.base_spec.copy()
+        self.draw.edit(spec, self.draw.values[index])
+        return spec
+
+    def select_draw(self, index: int) -> None:
+        """Use the drawn version `index` of the model (`reset` draws one itself; datasets pick each in turn).
+        Versions are compiled once, on first use."""
+        if self.draw is None:
+            raise ValueError(f"{self.task_id} draws no model versions; select_draw applies to tasks with a draw")
+        if not 0 <= index < len(self.draw.values):
+            raise ValueError(f"draw index {index} out of range: {self.task_id} has {len(self.draw.values)} versions "
+                             f"({', '.join(map(str, self.draw.values))})")
+        self._drawn = int(index)
+        self._command = np.array([self.draw.values[index]], dtype=np.float64)
+        if index not in self._draw_models:
+            self._draw_models[index] = _compile_spec(self._version_spec(index))
+        self._adopt(self._draw_models[index])
+
+    @property
+    def draw_indices(self) -> tuple[int, ...]:
+        """Indices of the draw's values this env's mode draws from (empty without a draw)."""
+        return tuple(self._draw_indices)
+
+    @property
+    def drawn_index(self) -> int | None:
+        """Index of the current version of the model among the draw's values (None without a draw)."""
+        return self._drawn if self.draw is not None else None
+
+    def _adopt(self, model: mujoco.MjModel) -> None:
+        """Make `model` the env's model; everything derived from it (inertia, layout, ranges) follows."""
+        self.model = model
         self.data = mujoco.MjData(self.model)
         self.n_substeps = max(1, int(round(self.body.control_dt / self.model.opt.timestep)))
         self.dt = self.n_substeps * self.model.opt.timestep
@@ -183,20 +244,26 @@ class LocoEnv(Environment):
             if name in self._init_pose:
                 adr = self.model.jnt_qposadr[j]
                 self._init_qpos[adr:adr + self._init_pose[name].size] = self._init_pose[name]
+        if self.draw is not None and self.draw.state_map is not None:   # e.g. the start pose of a smaller body
+            self._init_qpos, _ = self.draw.state_map(model, self._init_qpos, np.zeros(model.nv),
+                                                     self.draw.values[self._drawn])
         self._root_body = int(self.model.jnt_bodyid[0]) if self.model.njnt else 1
         self._root_xy_idx, self._root_xy_proj = root_xy_projection(self.model)
         self._mass_fraction = self.model.body_mass / self.model.body_mass.sum()
         self._point_body = (mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, self.task.velocity_point)
                             if self.task.velocity_point not in ("root", "com") else self._root_body)
-        if getattr(self, "_renderer", None) is not None:   # the renderer is bound to the old model
+        if getattr(self, "_renderer", None) is not None:   # the renderer and viewer are bound to the old model
             self._renderer.close()
             self._renderer = None
+        if getattr(self, "_viewer", None) is not None:
+            self._viewer.close()
+            self._viewer = None
 
     def randomize(self) -> None:
         """Draw new physical parameters: edit a copy of the base spec and recompile."""
         if self.randomization is None:
             raise RuntimeError("this env has no randomization config; pass randomization=... to make()")
-        spec = self.base_spec.copy()
+        spec = self._version_spec(self._drawn) if self.draw is not None else self.base_spec.copy()
         self.randomization.apply(spec, self._rng)
         self._compile(spec)
 
@@ -207,8 +274,14 @@ class LocoEnv(Environment):
 
     def reset(self, state: np.ndarray | None = None) -> np.ndarray:
         """Start an episode. `state`, if given, is a full simulator state (qpos, qvel) concatenated."""
-        if self.randomization is not None and self._episodes % self.randomize_every == 0:
+        drawn = self._draw_index() if self.draw is not None else None
+        due = self.randomization is not None and self._episodes % self.randomize_every == 0
+        if self.randomization is not None and (due or drawn != self.drawn_index):
+            if drawn is not None:   # a new version is randomized afresh
+                self._drawn = drawn
             self.randomize()
+        elif drawn is not None and drawn != self._drawn:
+            self.select_draw(drawn)
         self._episodes += 1
         mujoco.mj_resetData(self.model, self.data)
         if state is not None:
@@ -222,14 +295,22 @@ class LocoEnv(Environment):
         else:
             qpos, qvel = self._noisy_init_state()
         self.data.qpos[:], self.data.qvel[:] = qpos, qvel
-        self._command = (self.task.command_sampler(self._rng) if self.task.command_sampler
-                         else np.zeros(0))
+        if self.draw is not None:
+            self._command = np.array([self.draw.values[self._drawn]], dtype=np.float64)
+        else:
+            self._command = (self.task.command_sampler(self._rng) if self.task.command_sampler
+                             else np.zeros(0))
         mujoco.mj_forward(self.model, self.data)
         self._steps = 0
         self._needs_reset = False
         self._warnings0 = self._divergence_count()
         self._last_obs = self._observation()
         return self._last_obs.copy()
+
+    def _draw_index(self) -> int:
+        """This episode's version of the model: uniform over the mode's versions (LocoMuJoCo's random reset)."""
+        idx = self._draw_indices
+        return idx[int(self._rng.integers(len(idx)))] if len(idx) > 1 else idx[0]
 
     def _noisy_init_state(self) -> tuple[np.ndarray, np.ndarray]:
         kind, scale = self.body.reset_noise
@@ -296,7 +377,9 @@ class LocoEnv(Environment):
 
     def _observation(self) -> np.ndarray:
         parts = [self.data.qpos[self._layout.qpos_idx], self.data.qvel[self._layout.qvel_idx]]
-        if self.task.command_features is not None:
+        if self.draw is not None:
+            parts.append(self.draw.features(self.draw.values[self._drawn]))
+        elif self.task.command_features is not None:
             parts.append(self.task.command_features(self._command))
         obs = np.concatenate(parts)
         return obs if self._mask_all else obs[self.obs_mask]

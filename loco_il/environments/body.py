@@ -58,4 +58,10 @@ class Body:
     extra: Mapping[str, object] = field(default_factory=dict)
 
     def task_ids(self) -> list[str]:
-        return [f"{self.name}.{task}.{ds}" for task in self.tasks for ds in self.datasets]
+        return [f"{self.name}.{task}{'.' + mode if mode else ''}.{ds}"
+                for task in self.tasks for mode in self.modes(task) for ds in self.datasets]
+
+    def modes(self, task: str) -> tuple[str | None, ...]:
+        """The Task-ID modes of a task (LocoMuJoCo's 4Ages body sizes: all, 1, 2, 3, 4); (None,) without modes."""
+        draw = self.tasks[task].draw
+        return tuple(draw.modes) if draw is not None and draw.modes else (None,)

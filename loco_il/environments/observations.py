@@ -139,8 +139,9 @@ def joint_layout(model: mujoco.MjModel, exclude_root_xy: bool = True) -> JointLa
                        tuple(pos_names), tuple(vel_names))
 
 
-def observation_spec(layout: JointLayout, task_feature_names: Sequence[str]) -> ObservationSpec:
+def observation_spec(layout: JointLayout, task_feature_names: Sequence[str],
+                     task_feature_group: str = "command") -> ObservationSpec:
     names = layout.pos_names + layout.vel_names + tuple(task_feature_names)
     groups = (("positions",) * len(layout.pos_names) + ("velocities",) * len(layout.vel_names)
-              + ("command",) * len(task_feature_names))
+              + (task_feature_group,) * len(task_feature_names))
     return ObservationSpec(names, groups)

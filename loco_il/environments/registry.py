@@ -1,4 +1,9 @@
-"""Task-IDs: `<Body>[-<variant>].<task>.<dataset>[.pomdp]`, defaults for missing parts, close-match errors."""
+"""Task-IDs: `<Body>[-<variant>].<task>[.<mode>].<dataset>[.pomdp]`, defaults for missing parts, close-match errors.
+
+The mode exists for tasks that draw a version of the model per episode from a set the mode names
+(LocoMuJoCo's 4Ages humanoids: `HumanoidTorque4Ages.walk.2.real`, `...walk.all.real`); a missing mode
+takes the task's default.
+"""
 from __future__ import annotations
 
 import difflib
@@ -50,10 +55,12 @@ class TaskID:
     task: str
     dataset: str
     pomdp: bool
+    mode: str | None = None
 
     def __str__(self) -> str:
         name = self.body + (f"-{self.variant}" if self.variant else "")
-        return f"{name}.{self.task}.{self.dataset}" + (".pomdp" if self.pomdp else "")
+        task = self.task + (f".{self.mode}" if self.mode else "")
+        return f"{name}.{task}.{self.dataset}" + (".pomdp" if self.pomdp else "")
 
 
 def get_all_task_names() -> list[str]:
@@ -78,8 +85,8 @@ def parse_task_id(task_id: str) -> TaskID:
     pomdp = parts[-1] == "pomdp" and len(parts) > 1
     if pomdp:
         parts = parts[:-1]
-    if len(parts) > 3:
-        raise UnknownTaskError(f"malformed Task-ID {task_id!r}: expected <Body>.<task>.<dataset>[.pomdp]")
+    if len(parts) > 4:
+        raise UnknownTaskError(f"malformed Task-ID {task_id!r}: expected <Body>.<task>[.<mode>].<dataset>[.pomdp]")
     body_part = parts[0]
     body_name, _, variant = body_part.partition("-")
     all_ids = get_all_task_names()
@@ -88,12 +95,24 @@ def parse_task_id(task_id: str) -> TaskID:
                                f"Closest valid IDs: {_suggest(task_id, all_ids)}")
     body = _BODIES[body_name]
     task = parts[1] if len(parts) > 1 else body.default_task
-    dataset = parts[2] if len(parts) > 2 else body.default_dataset
+    rest = parts[2:]
+    if len(rest) == 1 and rest[0] not in DATASET_TYPES and task in body.tasks and body.modes(task) != (None,):
+        rest = [rest[0], body.default_dataset]       # <Body>.<task>.<mode>
+    mode = rest[0] if len(rest) == 2 else None
+    dataset = rest[-1] if rest else body.default_dataset
     if task not in body.tasks:
         candidates = [t for t in all_ids if t.startswith(body_name + ".")]
         raise UnknownTaskError(f"unknown Task-ID {task_id!r}: {body_name} has no task {task!r} "
                                f"(its tasks: {', '.join(body.tasks)}). Closest valid IDs: "
                                f"{_suggest(task_id, candidates)}")
+    modes = body.modes(task)
+    if mode is not None and mode not in modes:
+        why = (f"{body_name}.{task} has no mode part; drop {mode!r}" if modes == (None,) else
+               f"mode {mode!r} of {body_name}.{task} is not one of {', '.join(modes)} "
+               f"(e.g. {body_name}.{task}.{modes[0]}.{dataset})")
+        raise UnknownTaskError(f"unknown Task-ID {task_id!r}: {why}")
+    if mode is None and modes != (None,):
+        mode = body.tasks[task].draw.default_mode
     if dataset not in body.datasets:
         raise UnknownTaskError(f"unknown Task-ID {task_id!r}: {body_name} offers datasets "
                                f"{', '.join(body.datasets)}, not {dataset!r}. Closest valid IDs: "
@@ -104,7 +123,7 @@ def parse_task_id(task_id: str) -> TaskID:
         if variant not in known:
             raise UnknownTaskError(f"unknown variant {variant!r} of {body_name}; closest: "
                                    f"{_suggest(variant, known)} (see list_variants({body_name!r}))")
-    return TaskID(body_name, variant or None, task, dataset, pomdp)
+    return TaskID(body_name, variant or None, task, dataset, pomdp, mode)
 
 
 def make(task_id: str, **kwargs: Any):
@@ -117,4 +136,4 @@ def make(task_id: str, **kwargs: Any):
         kwargs["randomization"] = load_randomization(kwargs["randomization"], tid.body)
     if kwargs.get("randomization") is not None and "randomize_every" not in kwargs:
         kwargs["randomize_every"] = getattr(kwargs["randomization"], "every", 1)
-    return LocoEnv(body, tid.task, tid.dataset, variant=tid.variant, pomdp=tid.pomdp, **kwargs)
+    return LocoEnv(body, tid.task, tid.dataset, variant=tid.variant, mode=tid.mode, pomdp=tid.pomdp, **kwargs)

@@ -14,7 +14,7 @@ Two families:
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Callable, Protocol, Sequence
+from typing import Callable, Mapping, Protocol, Sequence
 
 import mujoco
 import numpy as np
@@ -56,6 +56,19 @@ class TargetVelocityReward:
     def __call__(self, ctx: StepContext) -> tuple[float, dict[str, float]]:
         vx = float(ctx.xy_velocity[0])
         return float(np.exp(-(vx - self.target) ** 2)), {"x_velocity": vx}
+
+
+@dataclass(frozen=True)
+class ScaledTargetVelocityReward:
+    """exp(-(v_x - target * s)^2) with s = the episode's drawn value (the body size of LocoMuJoCo's 4Ages
+    humanoids: `MultiTargetVelocityReward` in loco_mujoco/utils/reward.py scales the target by the size)."""
+
+    target: float
+
+    def __call__(self, ctx: StepContext) -> tuple[float, dict[str, float]]:
+        vx = float(ctx.xy_velocity[0])
+        goal = self.target * float(ctx.command[0])
+        return float(np.exp(-(vx - goal) ** 2)), {"x_velocity": vx, "target_velocity": goal}
 
 
 @dataclass(frozen=True)
@@ -200,6 +213,43 @@ class FallTermination:
 
 
 # ---------------------------------------------------------------- task
+StateMap = Callable[[mujoco.MjModel, np.ndarray, np.ndarray, float], tuple[np.ndarray, np.ndarray]]
+
+
+@dataclass(frozen=True)
+class EpisodeDraw:
+    """A few physical versions of the model, one drawn per episode and shown to the policy.
+
+    LocoMuJoCo builds one model per version and picks one at every reset (`LocoEnv.reset`,
+    loco_mujoco/environments/base.py): the carried mass of `carry`, the body size of the 4Ages humanoids.
+    The env's command is the drawn value (rewards read it), the observation gains `features(value)`.
+
+    values: the versions (e.g. masses in kg, body scales); `edit(spec, value)` builds a version from the
+        body's spec; versions must keep the joints and actuators (the layout is shared).
+    names / group: the observation entries of `features` and their group (POMDP masks hide groups).
+    modes: Task-ID mode -> indices of the values drawn from (empty: the task has no mode part);
+        `default_mode` fills a missing mode.
+    reference: index of the version that motion is retargeted to (datasets); `state_map(model, qpos, qvel,
+        value)` carries a state of the reference version to the version `value` (None: unchanged).
+    """
+
+    values: tuple[float, ...]
+    edit: Callable[[mujoco.MjSpec, float], None]
+    names: tuple[str, ...]
+    group: str
+    features: Callable[[float], np.ndarray]
+    modes: Mapping[str, tuple[int, ...]] = field(default_factory=dict)
+    default_mode: str | None = None
+    reference: int = 0
+    state_map: StateMap | None = None
+
+    def indices(self, mode: str | None) -> tuple[int, ...]:
+        """Indices of the values a mode draws from (every value when the task has no modes)."""
+        if not self.modes:
+            return tuple(range(len(self.values)))
+        return self.modes[mode if mode is not None else self.default_mode]
+
+
 @dataclass(frozen=True)
 class Task:
     """A task of one body: its reward, termination, horizon and command features.
@@ -209,6 +259,9 @@ class Task:
     `command_sampler(rng) -> np.ndarray` draws a command per episode (e.g. walking direction);
     `command_features(command) -> np.ndarray` is appended to the observation, named `command_names`.
     `resample_command_every`: steps between command redraws (0 = once per episode).
+    `command_group`: observation group of the command entries.
+    `draw`: physical versions of the model drawn per episode (`EpisodeDraw`); the command is then the drawn
+    value and the observation entries are the draw's (no `command_sampler`).
     """
 
     reward: RewardFn
@@ -221,6 +274,13 @@ class Task:
     command_names: Sequence[str] = field(default_factory=tuple)
     resample_command_every: int = 0
     description: str = ""
+    command_group: str = "command"
+    draw: EpisodeDraw | None = None
+
+    def __post_init__(self) -> None:
+        if self.draw is not None and (self.command_sampler is not None or self.command_features is not None):
+            raise ValueError("a task with a draw takes its command and features from the draw; "
+                             "drop command_sampler / command_features")
 
 
 def straight_command(rng: np.random.Generator) -> np.ndarray:

@@ -16,7 +16,8 @@ from loco_il.environments.tasks import StepContext
 
 DIMS = {"Atlas": (30, 10), "Talos": (34, 12), "UnitreeH1": (32, 11), "UnitreeG1": (56, 23),
         "HumanoidTorque": (36, 13), "HumanoidMuscle": (36, 92), "UnitreeA1": (37, 12)}
-TASKS = {"Atlas": {"walk", "stand"}, "Talos": {"walk", "stand"}, "UnitreeH1": {"walk", "run", "stand"},
+TASKS = {"Atlas": {"walk", "carry", "stand"}, "Talos": {"walk", "carry", "stand"},
+         "UnitreeH1": {"walk", "run", "carry", "stand"},
          "UnitreeG1": {"walk", "run", "stand"}, "HumanoidTorque": {"walk", "run", "stand"},
          "HumanoidMuscle": {"walk", "run", "stand"}, "UnitreeA1": {"simple", "hard"}}
 ROBOTS = list(DIMS)

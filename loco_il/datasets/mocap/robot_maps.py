@@ -31,7 +31,8 @@ headless robot, in the initial pose): used by ``scale="height"`` and reported in
 Scaling uses leg length (hip -> knee -> ankle) by default.
 
 Status (see ``RETARGET_NOTES`` for details): maps exist for every humanoid body registered
-in loco_il (LocoMuJoCo's Atlas, Talos, UnitreeH1, UnitreeG1, HumanoidTorque, HumanoidMuscle;
+in loco_il (LocoMuJoCo's Atlas, Talos, UnitreeH1, UnitreeG1, HumanoidTorque, HumanoidMuscle and their
+4Ages versions, whose offsets are the adult's: motion is retargeted to the adult size;
 Menagerie's H1, G1, BoosterT1, BerkeleyHumanoid, ApptronikApollo, RobotisOP3; MyoLeg;
 Gymnasium's Humanoid).  Quadrupeds (UnitreeA1, UnitreeGo1) and the planar classic bodies have
 no human keypoint map.
@@ -158,7 +159,7 @@ ROBOT_MAPS: dict[str, RobotMap] = {m.name: m for m in [
            _legs("femur_l", "tibia_l", "talus_l", "toes_l", "femur_r", "tibia_r", "talus_r", "toes_r"),
            _arms("humerus_l", "ulna_l", "hand_l", "humerus_r", "ulna_r", "hand_r"),
            notes="arms have no joints in LocoMuJoCo's model: they follow the torso")
-      for name in ("HumanoidTorque", "HumanoidMuscle")],
+      for name in ("HumanoidTorque", "HumanoidMuscle", "HumanoidTorque4Ages", "HumanoidMuscle4Ages")],
     # ---------------------------------------------------------------- MuJoCo Menagerie bodies
     _map("H1", 1.74,
          {"pelvis": "pelvis", "torso": ("torso_link", (0.0, 0.0, 0.20)), "neck": ("torso_link", (0.0, 0.0, 0.43)),

@@ -150,14 +150,15 @@ def expert_search_path() -> list[Path]:
 
 
 def task_key(env_or_id: Any) -> str:
-    """``<Body>[-<variant>].<task>`` of an env or a Task-ID (dataset type and ``.pomdp`` dropped)."""
+    """``<Body>[-<variant>].<task>[.<mode>]`` of an env or a Task-ID (dataset type and ``.pomdp`` dropped)."""
     if isinstance(env_or_id, str):
         from loco_il.environments.registry import parse_task_id
         tid = parse_task_id(env_or_id)
-        body, variant, task = tid.body, tid.variant, tid.task
+        body, variant, task, mode = tid.body, tid.variant, tid.task, tid.mode
     else:
         body, variant, task = env_or_id.body_name, getattr(env_or_id, "variant", None), env_or_id.task_name
-    return f"{body}{'-' + variant if variant else ''}.{task}"
+        mode = getattr(env_or_id, "mode", None)
+    return f"{body}{'-' + variant if variant else ''}.{task}{'.' + mode if mode else ''}"
 
 
 def available_experts() -> list[str]:
@@ -774,7 +775,9 @@ def dataset_init_state_sampler(init_states: InitStates | None = None, *, env: An
     * ``dataset_init_state_sampler(init_states)``: a uniformly drawn episode's initial state.
     * ``dataset_init_state_sampler(env=env, trajs=full_obs_dataset)``: any state of the dataset
       (as LocoMuJoCo does), rebuilt from a full observation: positions and velocities are the
-      observation's entries; the root's horizontal position (not observed) is the env's default.
+      observation's entries; the root's horizontal position (not observed) is the env's default. For a
+      task that draws a version of the model per episode (carry's mass, 4Ages' size) only the states
+      recorded on the episode's version are drawn (LocoMuJoCo's `scaling_trajectory_map`).
 
     Use: ``env.init_state_sampler = dataset_init_state_sampler(...)``.
     """
@@ -794,11 +797,32 @@ def dataset_init_state_sampler(init_states: InitStates | None = None, *, env: An
         qpos[:, layout.qpos_idx] = states[:, :npos]
         qvel = np.zeros((len(states), env.model.nv))
         qvel[:, layout.qvel_idx] = states[:, npos:npos + nvel]
+        if getattr(env, "draw", None) is not None:
+            return _per_version_sampler(env, states[:, npos + nvel:], qpos, qvel)
     if len(qpos) == 0:
         raise DatasetError("no states to sample from")
 
     def sample(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
         i = int(rng.integers(len(qpos)))
+        return qpos[i].copy(), qvel[i].copy()
+
+    return sample
+
+
+def _per_version_sampler(env: Any, entries: np.ndarray, qpos: np.ndarray,
+                        qvel: np.ndarray) -> Callable[[np.random.Generator], tuple[np.ndarray, np.ndarray]]:
+    """Sample states whose draw entries are those of the env's current version of the model."""
+    draw = env.draw
+    rows = {}
+    for i in env.draw_indices:
+        rows[i] = np.flatnonzero(np.all(entries == draw.features(draw.values[i]), axis=1))
+        if rows[i].size == 0:
+            raise DatasetError(f"the dataset has no states of {env.task_id}'s version {draw.values[i]} "
+                               f"({', '.join(draw.names)}); build it for this Task-ID's mode")
+
+    def sample(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+        candidates = rows[env.drawn_index]
+        i = int(candidates[rng.integers(len(candidates))])
         return qpos[i].copy(), qvel[i].copy()
 
     return sample

@@ -4,7 +4,11 @@ Facts from LocoMuJoCo 0.4.1 `loco_mujoco/environments/humanoids/atlas.py`:
 * `Atlas.__init__(disable_arms=True, disable_back_joint=True)`: `_get_xml_modifications` removes the
   12 arm joints (l/r_arm_shz, shx, ely, elx, wry, wrx) and the 3 back joints (back_bkz, bky, bkx) with
   their `<joint>_actuator` motors -> 16 joints left, observation 30 (14 positions + 16 velocities),
-  10 actions. Tasks walk (1.25 m/s) and carry; carry is not provided here.
+  10 actions. Tasks walk (1.25 m/s) and carry.
+* carry (`Atlas._add_weight`, `Atlas.__init__(hold_weight=True)`): a body "weight" on utorso holding a
+  box geom of half-sizes (0.1, 0.27, 0.1) at (0.72, 0, -0.25) whose mass is one of 0.1, 1, 5, 10 kg, one
+  model per mass, one drawn per episode; the arms are turned to hold it (body quaternions r_clav
+  (1, 0, -0.35, 0), l_clav (0, -0.35, 0, 1)). The observation gains the mass: 31 entries.
 * `_has_fallen` (atlas.py lines 381-384): pelvis_ty outside [-0.3, 0.1], pelvis_tilt outside
   [-pi/4.5, pi/12], pelvis_list outside [-pi/12, pi/8], pelvis_rotation outside [-pi/10, pi/10]
   (the back bounds apply only with the back joint enabled). The pelvis body sits at z = 0.94 in
@@ -20,8 +24,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from loco_il.environments.bodies.locomujoco.common import (STAND_KEY, RootJointFall, add_keyframe, humanoid_tasks,
-                                                           locomujoco_body, pelvis_bounds, slide_to_height)
+from loco_il.environments.bodies.locomujoco.common import (STAND_KEY, Load, RootJointFall, add_keyframe, carry_task,
+                                                           humanoid_tasks, locomujoco_body, pelvis_bounds,
+                                                           slide_to_height)
 from loco_il.environments.registry import register_body
 
 MODEL = "atlas/atlas.xml"
@@ -37,6 +42,9 @@ TERMINATION = RootJointFall(
     height_range=slide_to_height(PELVIS_Z, (-0.3, 0.1)),
     joint_bounds=pelvis_bounds(np.pi / 10))
 
+LOAD = Load(parent="utorso", half_size=(0.1, 0.27, 0.1), pos=(0.72, 0.0, -0.25),
+            body_quats={"r_clav": (1.0, 0.0, -0.35, 0.0), "l_clav": (0.0, -0.35, 0.0, 1.0)})
+
 STAND_POSE = {"pelvis_ty": -0.0046, "pelvis_tilt": -0.04, "ankle_angle_l": 0.04, "ankle_angle_r": 0.04}
 
 
@@ -44,7 +52,8 @@ def _edit(spec) -> None:
     add_keyframe(spec, STAND_POSE, STAND_KEY)
 
 
-ATLAS = locomujoco_body("Atlas", MODEL, humanoid_tasks(TERMINATION, run=False, robot="Atlas"), "locomujoco/atlas",
+TASKS = {**humanoid_tasks(TERMINATION, run=False, robot="Atlas"), "carry": carry_task(TERMINATION, "Atlas", LOAD)}
+ATLAS = locomujoco_body("Atlas", MODEL, TASKS, "locomujoco/atlas",
                         _edit, joints_to_remove=REMOVED_JOINTS, actuators_to_remove=REMOVED_ACTUATORS)
 
 register_body(ATLAS)

@@ -19,6 +19,7 @@ Start state. LocoMuJoCo starts from dataset states; the models have no keyframe.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import partial
 from typing import Any, Callable, Mapping, Sequence
 
 import mujoco
@@ -26,7 +27,7 @@ import numpy as np
 
 from loco_il.environments.assets import LICENCES, locomujoco_asset
 from loco_il.environments.body import Body
-from loco_il.environments.tasks import StepContext, Task, TargetVelocityReward
+from loco_il.environments.tasks import EpisodeDraw, StepContext, Task, TargetVelocityReward
 
 TIMESTEP = 0.001        # LocoMuJoCo LocoEnv(timestep=0.001)
 CONTROL_DT = 0.01       # LocoMuJoCo LocoEnv(n_substeps=10) -> 100 Hz
@@ -55,10 +56,13 @@ class RootJointFall:
 
     height_range: (lo, hi) on the world z of the root body (the body of the model's first joint), metres.
     joint_bounds: ((joint_name, lo, hi), ...) on joint positions (radians), e.g. pelvis tilt/list/rotation.
+    slide_relative: height_range bounds the root's displacement from its model height (LocoMuJoCo's
+        vertical slide itself) instead of its world z: for models drawn in several sizes (4Ages).
     """
 
     height_range: tuple[float, float]
     joint_bounds: tuple[tuple[str, float, float], ...] = ()
+    slide_relative: bool = False
     _layout: dict = field(default_factory=dict, compare=False, repr=False)   # id(model) -> (qpos idx, lo, hi)
 
     def _bounds(self, model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -78,7 +82,8 @@ class RootJointFall:
 
     def __call__(self, ctx: StepContext) -> bool:
         model, data = ctx.model, ctx.data
-        z = data.xpos[model.jnt_bodyid[0], 2]
+        root = model.jnt_bodyid[0]
+        z = data.xpos[root, 2] - (model.body_pos[root, 2] if self.slide_relative else 0.0)
         if not self.height_range[0] <= z <= self.height_range[1]:
             return True
         idx, lo, hi = self._bounds(model)
@@ -145,3 +150,60 @@ def humanoid_tasks(termination: RootJointFall, run: bool, robot: str) -> dict[st
     tasks["stand"] = Task(TargetVelocityReward(0.0), termination, horizon=HORIZON,
                           description=f"{robot}: stand still (target velocity 0; not in LocoMuJoCo)")
     return tasks
+
+
+# ---------------------------------------------------------------- carry
+#: the carried masses (kg) drawn per episode: `_valid_weights` of LocoMuJoCo's Atlas / Talos / UnitreeH1 `__init__`
+CARRY_MASSES = (0.1, 1.0, 5.0, 10.0)
+LOAD_BODY = "weight"    # LocoMuJoCo's name of the carried body (its observation reads this body's mass)
+
+
+@dataclass(frozen=True)
+class Load:
+    """Where a robot carries its load (LocoMuJoCo's `_add_weight` of the robot's module): a box body on `parent`
+    with half-sizes `half_size` at `pos` (parent frame), plus arm poses `body_quats` that hold it."""
+
+    parent: str
+    half_size: tuple[float, float, float]
+    pos: tuple[float, float, float]
+    body_quats: Mapping[str, Sequence[float]] = field(default_factory=dict)
+
+
+def load_colour(mass: float) -> list[float]:
+    """Blue for the lightest load to red for the heaviest (LocoMuJoCo `BaseRobotHumanoid._get_box_color`)."""
+    t = CARRY_MASSES.index(mass) / (len(CARRY_MASSES) - 1) if mass in CARRY_MASSES else 1.0
+    blue, red = np.array([0.2, 0.0, 1.0, 1.0]), np.array([1.0, 0.0, 0.0, 1.0])
+    return list(blue + (red - blue) * t)
+
+
+def add_load(spec: mujoco.MjSpec, mass: float, load: Load) -> None:
+    """The load as a body of its own: a box with `mass` (uniform box inertia) welded to `load.parent`."""
+    parent = spec.body(load.parent)
+    if parent is None:
+        raise KeyError(f"the load's parent body {load.parent!r} is not in the model")
+    if mass <= 0:
+        raise ValueError(f"a carried mass must be positive, got {mass}")
+    hx, hy, hz = load.half_size
+    inertia = [mass / 3 * (hy ** 2 + hz ** 2), mass / 3 * (hx ** 2 + hz ** 2), mass / 3 * (hx ** 2 + hy ** 2)]
+    body = parent.add_body(name=LOAD_BODY, pos=list(load.pos), mass=mass, inertia=inertia, explicitinertial=True)
+    body.add_geom(name=LOAD_BODY, type=mujoco.mjtGeom.mjGEOM_BOX, size=list(load.half_size), mass=mass,
+                  rgba=load_colour(mass))
+    set_body_quats(spec, load.body_quats)
+
+
+def carried_mass(mass: float) -> np.ndarray:
+    return np.array([mass])
+
+
+def carry_task(termination: RootJointFall, robot: str, load: Load) -> Task:
+    """LocoMuJoCo's carry: walk at 1.25 m/s carrying a load whose mass is drawn per episode from
+    `CARRY_MASSES`; the observation gains the mass (group "weight", as LocoMuJoCo's `get_mask` names it)."""
+    draw = EpisodeDraw(values=CARRY_MASSES, edit=partial(_edit_load, load=load), names=("carried_mass",),
+                       group="weight", features=carried_mass)
+    return Task(TargetVelocityReward(WALK_SPEED), termination, horizon=HORIZON, draw=draw,
+                description=f"{robot}: walk forward at {WALK_SPEED} m/s carrying a load of "
+                            f"{', '.join(map(str, CARRY_MASSES))} kg drawn per episode (LocoMuJoCo carry)")
+
+
+def _edit_load(spec: mujoco.MjSpec, mass: float, load: Load) -> None:
+    add_load(spec, mass, load)

@@ -42,6 +42,8 @@ from loco_il.environments.bodies.locomujoco.common import (STAND_KEY, RootJointF
 from loco_il.environments.registry import register_body
 
 PELVIS_Z = 0.975    # humanoid_torque.xml / humanoid_muscle.xml: <body name="pelvis" pos="0 6.7e-17 0.975">
+TORQUE_MODEL = "humanoid/humanoid_torque.xml"
+MUSCLE_MODEL = "humanoid/humanoid_muscle.xml"
 
 FOOT_JOINTS = ("subtalar_angle_l", "mtp_angle_l", "subtalar_angle_r", "mtp_angle_r")
 FOOT_MOTORS = ("mot_subtalar_angle_l", "mot_mtp_angle_l", "mot_subtalar_angle_r", "mot_mtp_angle_r")
@@ -82,7 +84,8 @@ def add_box_feet(spec: mujoco.MjSpec) -> None:
         geom.conaffinity = 0
 
 
-def _edit(spec: mujoco.MjSpec) -> None:
+def edit(spec: mujoco.MjSpec) -> None:
+    """LocoMuJoCo's default edits (box feet, arms turned in) and our "stand" keyframe."""
     add_box_feet(spec)
     set_body_quats(spec, ARM_QUATS)
     add_keyframe(spec, STAND_POSE, STAND_KEY)
@@ -90,11 +93,13 @@ def _edit(spec: mujoco.MjSpec) -> None:
 
 def _humanoid(name: str, model: str, actuators_to_remove: tuple[str, ...]) -> Body:
     return locomujoco_body(name, model, humanoid_tasks(TERMINATION, run=True, robot=name), "locomujoco/humanoid",
-                           _edit, joints_to_remove=REMOVED_JOINTS, actuators_to_remove=actuators_to_remove)
+                           edit, joints_to_remove=REMOVED_JOINTS, actuators_to_remove=actuators_to_remove)
 
 
-HUMANOID_TORQUE = _humanoid("HumanoidTorque", "humanoid/humanoid_torque.xml", FOOT_MOTORS + ARM_MOTORS)
-HUMANOID_MUSCLE = _humanoid("HumanoidMuscle", "humanoid/humanoid_muscle.xml", ARM_MOTORS)
+TORQUE_REMOVED_MOTORS = FOOT_MOTORS + ARM_MOTORS
+MUSCLE_REMOVED_MOTORS = ARM_MOTORS
+HUMANOID_TORQUE = _humanoid("HumanoidTorque", TORQUE_MODEL, TORQUE_REMOVED_MOTORS)
+HUMANOID_MUSCLE = _humanoid("HumanoidMuscle", MUSCLE_MODEL, MUSCLE_REMOVED_MOTORS)
 
 register_body(HUMANOID_TORQUE)
 register_body(HUMANOID_MUSCLE)

@@ -6,7 +6,12 @@ Facts from LocoMuJoCo 0.4.1 `loco_mujoco/environments/humanoids/talos.py`:
   joints back_bkz and back_bky stay -> 18 joints, observation 34 (16 positions + 18 velocities),
   12 actions. With the arms disabled (and no weight) `_reorient_arms` sets the quaternions of
   arm_right_4_link and arm_left_4_link to (1, 0, -0.25, 0) so the elbows clear the hips.
-  Tasks walk (1.25 m/s) and carry; carry is not provided here.
+  Tasks walk (1.25 m/s) and carry.
+* carry (`Talos._add_weight`, `Talos.__init__(hold_weight=True)`): a body "weight" on torso_2_link holding
+  a box geom of half-sizes (0.1, 0.25, 0.1) at (0.45, 0, -0.2) whose mass is one of 0.1, 1, 5, 10 kg, one
+  model per mass, one drawn per episode; the arms hold it (body quaternions arm_right/left_4_link
+  (1, 0, -0.65, 0), arm_right/left_6_link (1, 0, 0, 1), instead of the walking pose). The observation
+  gains the mass: 35 entries.
 * `_has_fallen` (talos.py lines 371-382): pelvis_ty outside [-0.3, 0.1], pelvis_tilt outside
   [-pi/4.5, pi/12], pelvis_list outside [-pi/12, pi/8], pelvis_rotation outside [-pi/10, pi/10],
   back_bky outside [-pi/4, pi/10], back_bkz outside [-pi/10, pi/10]. The pelvis body sits at
@@ -22,9 +27,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from loco_il.environments.bodies.locomujoco.common import (STAND_KEY, RootJointFall, add_keyframe, humanoid_tasks,
-                                                           locomujoco_body, pelvis_bounds, set_body_quats,
-                                                           slide_to_height)
+from loco_il.environments.bodies.locomujoco.common import (STAND_KEY, Load, RootJointFall, add_keyframe, carry_task,
+                                                           humanoid_tasks, locomujoco_body, pelvis_bounds,
+                                                           set_body_quats, slide_to_height)
 from loco_il.environments.registry import register_body
 
 MODEL = "talos/talos.xml"
@@ -41,6 +46,10 @@ TERMINATION = RootJointFall(
                   ("back_bky", -np.pi / 4, np.pi / 10),
                   ("back_bkz", -np.pi / 10, np.pi / 10)))
 
+LOAD = Load(parent="torso_2_link", half_size=(0.1, 0.25, 0.1), pos=(0.45, 0.0, -0.2),
+            body_quats={"arm_right_4_link": (1.0, 0.0, -0.65, 0.0), "arm_left_4_link": (1.0, 0.0, -0.65, 0.0),
+                        "arm_right_6_link": (1.0, 0.0, 0.0, 1.0), "arm_left_6_link": (1.0, 0.0, 0.0, 1.0)})
+
 STAND_POSE = {"pelvis_ty": 0.0011}
 
 
@@ -49,7 +58,8 @@ def _edit(spec) -> None:
     add_keyframe(spec, STAND_POSE, STAND_KEY)
 
 
-TALOS = locomujoco_body("Talos", MODEL, humanoid_tasks(TERMINATION, run=False, robot="Talos"), "locomujoco/talos",
+TASKS = {**humanoid_tasks(TERMINATION, run=False, robot="Talos"), "carry": carry_task(TERMINATION, "Talos", LOAD)}
+TALOS = locomujoco_body("Talos", MODEL, TASKS, "locomujoco/talos",
                         _edit, joints_to_remove=REMOVED_JOINTS, actuators_to_remove=REMOVED_ACTUATORS)
 
 register_body(TALOS)

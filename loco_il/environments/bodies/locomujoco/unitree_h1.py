@@ -6,8 +6,12 @@ Facts from LocoMuJoCo 0.4.1 `loco_mujoco/environments/humanoids/unitreeH1.py`:
   torso joint back_bkz stays -> 17 joints, observation 32 (15 positions + 17 velocities), 11 actions.
   With the arms disabled (and no weight) `_reorient_arms` sets body quaternions
   left_shoulder_pitch_link (1, 0.25, 0.1, 0), right_shoulder_pitch_link (1, -0.25, 0.1, 0),
-  left_elbow_link and right_elbow_link (1, 0, 0.25, 0). Tasks walk (1.25 m/s), run (2.5 m/s), carry
-  (not provided here).
+  left_elbow_link and right_elbow_link (1, 0, 0.25, 0). Tasks walk (1.25 m/s), run (2.5 m/s), carry.
+* carry (`UnitreeH1._add_weight`, `UnitreeH1.__init__(hold_weight=True)`): a body "weight" on torso_link
+  holding a box geom of half-sizes (0.1, 0.18, 0.1) at (0.35, 0, 0.1) whose mass is one of 0.1, 1, 5,
+  10 kg, one model per mass, one drawn per episode; the arms keep the model's pose (h1.xml: shoulder
+  pitch links (0.976296, +-0.216438, 0, 0), elbows unrotated) since `_reorient_arms` is skipped with a
+  weight. The observation gains the mass: 33 entries.
 * `_has_fallen` (unitreeH1.py lines 362-365): pelvis_ty outside [-0.3, 0.1], pelvis_tilt outside
   [-pi/4.5, pi/12], pelvis_list outside [-pi/12, pi/8], pelvis_rotation outside [-pi/8, pi/8].
   The pelvis body sits at z = 1.045 in h1.xml, so the height band is [0.745, 1.145] m on the pelvis
@@ -23,9 +27,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from loco_il.environments.bodies.locomujoco.common import (STAND_KEY, RootJointFall, add_keyframe, humanoid_tasks,
-                                                           locomujoco_body, pelvis_bounds, set_body_quats,
-                                                           slide_to_height)
+from loco_il.environments.bodies.locomujoco.common import (STAND_KEY, Load, RootJointFall, add_keyframe, carry_task,
+                                                           humanoid_tasks, locomujoco_body, pelvis_bounds,
+                                                           set_body_quats, slide_to_height)
 from loco_il.environments.registry import register_body
 
 MODEL = "unitree_h1/h1.xml"
@@ -41,6 +45,11 @@ TERMINATION = RootJointFall(
     height_range=slide_to_height(PELVIS_Z, (-0.3, 0.1)),
     joint_bounds=pelvis_bounds(np.pi / 8))
 
+MODEL_ARM_QUATS = {"left_shoulder_pitch_link": (0.976296, 0.216438, 0.0, 0.0), "left_elbow_link": (1.0, 0.0, 0.0, 0.0),
+                   "right_shoulder_pitch_link": (0.976296, -0.216438, 0.0, 0.0),
+                   "right_elbow_link": (1.0, 0.0, 0.0, 0.0)}
+LOAD = Load(parent="torso_link", half_size=(0.1, 0.18, 0.1), pos=(0.35, 0.0, 0.1), body_quats=MODEL_ARM_QUATS)
+
 STAND_POSE = {"pelvis_ty": -0.0017, "pelvis_tilt": -0.1, "ankle_angle_l": -0.1, "ankle_angle_r": -0.1}
 
 
@@ -49,7 +58,9 @@ def _edit(spec) -> None:
     add_keyframe(spec, STAND_POSE, STAND_KEY)
 
 
-UNITREE_H1 = locomujoco_body("UnitreeH1", MODEL, humanoid_tasks(TERMINATION, run=True, robot="UnitreeH1"),
+TASKS = {**humanoid_tasks(TERMINATION, run=True, robot="UnitreeH1"),
+         "carry": carry_task(TERMINATION, "UnitreeH1", LOAD)}
+UNITREE_H1 = locomujoco_body("UnitreeH1", MODEL, TASKS,
                              "locomujoco/unitree_h1", _edit,
                              joints_to_remove=REMOVED_JOINTS, actuators_to_remove=REMOVED_ACTUATORS)
 
