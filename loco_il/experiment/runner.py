@@ -151,6 +151,8 @@ def apply_per_algo(cfg: dict, cli_overrides: Sequence[str] = ()) -> dict:
 def dataset_kwargs(dcfg: Mapping[str, Any]) -> dict[str, Any]:
     """Keyword arguments of `create_dataset` (besides env and split) from the config's `dataset` group."""
     kwargs = {k: dcfg[k] for k in ("n_episodes", "expert_path", "workers") if dcfg.get(k) is not None}
+    if dcfg.get("regenerate"):   # generate again and replace the cached copy
+        kwargs["regenerate"] = True
     kwargs.update({k: v for k, v in (dcfg.get("provider_kwargs") or {}).items()})
     return dict(n_trajectories=dcfg.get("n_trajectories"), portion=tuple(dcfg.get("portion") or (0.0, 0.75)),
                 seed=int(dcfg.get("split_seed", 0)), generation_seed=int(dcfg.get("generation_seed", 0)),
@@ -165,8 +167,8 @@ def load_datasets(env: Any, dcfg: Mapping[str, Any]):
     portion = common["portion"]
     test = None
     if portion[1] - portion[0] < 1.0:
-        try:
-            test = create_dataset(env, split="test", **{**common, "verbose": False})
+        try:   # the train split's call already regenerated the pool (or kept it in memory): not again
+            test = create_dataset(env, split="test", **{**common, "verbose": False, "regenerate": False})
         except Exception:  # noqa: BLE001 - a pool too small for a test split: similarity uses train
             test = None
     return train, test
