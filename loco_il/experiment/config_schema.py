@@ -205,7 +205,8 @@ def validate_config(cfg: Any, *, check_paths: bool = True) -> dict[str, Any]:
     for key, ok, expected in RANGES:
         value = _get(typed, key)
         if not ok(value):
-            raise ConfigValueError(f"{key}={value}: expected {expected}")
+            shown = repr(value) if isinstance(value, str) else value
+            raise ConfigValueError(f"{key}={shown}: expected {expected}")
     resume_mode(typed["resume"])
     if not isinstance(typed["algo"].get("name"), str):
         raise ConfigValueError("algo.name is missing: choose an algorithm with algo=<name>")

@@ -42,7 +42,7 @@ def test_the_default_config_is_valid(tmp_path):
     ("dataset.workers=0", "dataset.workers=0: expected an integer >= 1"),
     ("dataset.portion=[0.5,0.2]", "dataset.portion=[0.5, 0.2]: expected [start, end]"),
     ("checkpoint_every=0", "checkpoint_every=0: expected an integer >= 1"),
-    ("init_state=middle", "init_state=middle: expected one of default, dataset"),
+    ("init_state=middle", "init_state='middle': expected one of default, dataset"),
     ("+n_step=100", "unknown config key 'n_step'"),
 ])
 def test_invalid_values_are_named(tmp_path, override, message):
