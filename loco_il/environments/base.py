@@ -247,9 +247,8 @@ class LocoEnv(Environment):
         a = np.asarray(action, dtype=np.float64)
         if a.shape != (self.model.nu,):
             raise ValueError(f"{self.task_id}: action must have shape ({self.model.nu},), got {np.shape(action)}")
-        # one reduction catches any NaN or inf; only when it is not finite, look closer (finite values near the
-        # float maximum overflow the sum and are merely clipped below)
-        if not math.isfinite(a.sum()) and not np.isfinite(a).all():
+        # element-wise: a sum would overflow for finite values near the float maximum (merely clipped below)
+        if not np.isfinite(a).all():
             raise ValueError(f"{self.task_id}: action contains NaN or inf: {a}")
         a = a.clip(-1.0, 1.0)
         self.data.ctrl[:] = self._ctrl_center + a * self._ctrl_half

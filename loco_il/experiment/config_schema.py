@@ -131,6 +131,7 @@ def _typed(cfg: Any) -> dict[str, Any]:
             raise ConfigValueError(f"unknown config key {key!r} ({msg}); `python train.py --cfg job` lists the "
                                    f"keys") from None
         value = _raw_value(cfg, key)
+        value = repr(value) if isinstance(value, str) else value
         expected = _expected_type(key)
         raise ConfigValueError(f"{key}={value}: expected {expected}" if expected else f"{key}: {msg}") from None
 

@@ -181,8 +181,11 @@ def test_checkpoints_kept_above_a_score_and_forked_from(env_vars, tmp_path):
     train(env_vars, results, *TINY_LSIQ, "n_steps=600", "eval.every=200", "checkpoint_every=600",
           "keep_checkpoints_above=-1e9")
     d = run_dir(results, "lsiq")
-    kept = sorted((d / "kept").iterdir(), key=lambda p: int(p.stem[4:]))
+    kept = sorted((d / "kept").glob("*.pt"), key=lambda p: int(p.stem[4:]))
     assert [p.name for p in kept] == ["step200.pt", "step400.pt", "step600.pt"]
+    # each with its checksum file, which a fork from it verifies
+    assert sorted(p.name for p in (d / "kept").iterdir()) == sorted([p.name for p in kept] +
+                                                                     [p.name + ".sha256" for p in kept])
     steps = [torch.load(p, map_location="cpu", weights_only=False)["counters"]["step"] for p in kept]
     assert steps == [200, 400, 600]
     scores = [float(r["normalized_score"]) for r in csv_rows(d / "log.csv")]
@@ -193,7 +196,7 @@ def test_checkpoints_kept_above_a_score_and_forked_from(env_vars, tmp_path):
     d_sel = run_dir(results, "lsiq_sel")
     assert [float(r["normalized_score"]) for r in csv_rows(d_sel / "log.csv")] == scores   # same seed, same run
     expected = sorted(f"step{200 * (i + 1)}.pt" for i, s in enumerate(scores) if s >= scores[1])
-    assert sorted(p.name for p in (d_sel / "kept").iterdir()) == expected
+    assert sorted(p.name for p in (d_sel / "kept").glob("*.pt")) == expected
     assert proc.stdout.count("checkpoint kept as") == len(expected)
 
     fork = train(env_vars, results, *TINY_LSIQ, "n_steps=400", "eval.every=200", "name=lsiq_fork200",

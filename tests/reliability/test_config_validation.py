@@ -30,9 +30,9 @@ def test_the_default_config_is_valid(tmp_path):
     ("n_steps=-5", "n_steps=-5: expected an integer >= 1"),
     ("n_steps=0", "n_steps=0: expected an integer >= 1"),
     ("n_steps=1.5", "n_steps=1.5: expected an integer"),
-    ("n_steps=abc", "n_steps=abc: expected an integer"),
+    ("n_steps=abc", "n_steps='abc': expected an integer"),
     ("seed=1.5", "seed=1.5: expected an integer"),
-    ("seed=abc", "seed=abc: expected an integer"),
+    ("seed=abc", "seed='abc': expected an integer"),
     ("seed=-1", "seed=-1: expected an integer >= 0"),
     ("eval.every=-10", "eval.every=-10: expected an integer >= 1"),
     ("eval.episodes=0", "eval.episodes=0: expected an integer >= 1"),
@@ -79,7 +79,7 @@ def _one_line_exit_2(proc: subprocess.CompletedProcess, message: str) -> None:
 
 @pytest.mark.parametrize("override, message", [
     ("n_steps=-5", "n_steps=-5: expected an integer >= 1"),
-    ("seed=abc", "seed=abc: expected an integer"),
+    ("seed=abc", "seed='abc': expected an integer"),
     ("device=gpu", "device=gpu: not a torch device"),
 ])
 def test_train_py_refuses_before_making_the_run_dir(env_vars, tmp_path, override, message):
