@@ -8,6 +8,7 @@
 """
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import shutil
@@ -88,6 +89,8 @@ class TrainCallbacks(Callback):
         folder = Path(records)
         jobs = sorted((json.loads(p.read_text()) for p in folder.glob("job*.json")), key=lambda r: r["job"])
         shutil.rmtree(folder, ignore_errors=True)
+        with contextlib.suppress(OSError):   # .multirun/ itself, unless another sweep is recording there
+            folder.parent.rmdir()
         print(summary_text(jobs), flush=True)
         if any(r["code"] != 0 for r in jobs):
             raise SystemExit(SWEEP_FAILED_EXIT_CODE)
