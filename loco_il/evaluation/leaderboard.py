@@ -4,11 +4,11 @@ Reads every `eval.json` below the given folder (one per `train.py` run; run dirs
 layout), groups the runs by (task, dataset type, algorithm label `name`, training budget) and writes to `--out`
 (default: the folder itself):
 
-* `leaderboard.md` and `leaderboard.csv`: per group its budget (eval.json `steps` with its unit: env steps, or
-  gradient steps for offline BC; runs of different budgets are never pooled), the number of seeds and mean ± 95 % confidence
-  interval over seeds of the final return and the normalized score. The interval is the Student-t one,
-  mean ± t(0.975, n-1) * s / sqrt(n) with the sample standard deviation s; with a single seed there is
-  no interval. Each seed contributes its final evaluation's mean return (eval.json `return_mean`).
+* `leaderboard.md` and `leaderboard.csv`: per group its budget (eval.json `steps` with its unit: env steps,
+  or gradient steps for offline BC; runs of different budgets are never pooled), the number of seeds and
+  mean ± 95 % confidence interval over seeds of the final return and the normalized score. The interval is
+  the Student-t one, mean ± t(0.975, n-1) * s / sqrt(n) with the sample standard deviation s; with a single
+  seed there is no interval. Each seed contributes its final evaluation's mean return (eval.json `return_mean`).
 * `curves/<task>.<dataset>.png`: evaluation return against training steps per algorithm (mean and 95 % CI
   over the seeds that logged each step), from the runs' `log.csv`.
 * a "published" column with scores from `published.yaml` (next to this file) where one exists for the
@@ -32,8 +32,8 @@ PUBLISHED_FILE = Path(__file__).with_name("published.yaml")
 NO_PUBLISHED = "n/a"
 PUBLISHED_NOTE = ("published: scores from loco_il/evaluation/published.yaml. LocoMuJoCo publishes no baseline "
                   "scores (loco-mujoco issue #13); \"n/a\" = no published number for that row.")
-CSV_HEADER = ("task", "dataset", "algorithm", "budget", "n_seeds", "seeds", "return_mean", "return_ci95", "normalized_mean",
-              "normalized_ci95", "published", "published_source")
+CSV_HEADER = ("task", "dataset", "algorithm", "budget", "n_seeds", "seeds", "return_mean", "return_ci95",
+              "normalized_mean", "normalized_ci95", "published", "published_source")
 
 
 # ----------------------------------------------------------------------------- statistics

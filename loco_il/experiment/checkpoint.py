@@ -56,8 +56,8 @@ RESUMABLE_KEYS = frozenset({"resume", "stop_after_steps", "logger", "eval", "n_s
                             "checkpoint_replay", "fork_from", "keep_checkpoints_above",
                             "device", "torch_threads", "results_dir", "per_algo",
                             "algo.params.cuda_graph",  # how an update is launched, not what it computes
-                            "dataset.workers",
-                            "dataset.regenerate"})  # rebuilds the same data (the generation is deterministic)  # how many processes generate the dataset, not what it holds
+                            "dataset.workers",      # how many processes generate the dataset, not what it holds
+                            "dataset.regenerate"})  # rebuilds the same data (the generation is deterministic)
 #: config keys added after runs may have been checkpointed, with the value that behaves as those runs did:
 #: a checkpoint without the key resumes when the new config holds that value
 ADDED_KEYS: dict[str, Any] = {"init_state": "default", "algo.policy.log_std_bounds": [-20.0, 2.0],

@@ -4,8 +4,10 @@
 
 1. checks that the algorithm can learn from the Task-ID's dataset type (`check_dataset_type`), before
    anything slow happens;
-2. resumes from `<run_dir>/checkpoint.pt` when there is one (`resume: auto`, the default, or `true`); a
-   finished run only prints its evaluation; a run dir whose checkpoint has a different config is refused;
+2. locks the run dir for this process (`lock.py`: a second process on it is refused) and resumes from
+   `<run_dir>/checkpoint.pt` when there is one (`resume: auto`, the default, or `true`), verified against the
+   sha256 in `checkpoint.json` (`checkpoint.py`); a finished run only prints its evaluation; a run dir whose
+   checkpoint has a different config is refused;
 3. builds the training env, the expert dataset (its `train` split; the `test` split is kept for the
    trajectory-similarity metrics) and the agent (`loco_il.algorithms.factory.build_agent`);
 4. trains in chunks: online agents through mushroom-rl's `Core.learn(n_steps=chunk, n_steps_per_fit=...)`,
@@ -257,8 +259,8 @@ class Runner:
             return None
         if not has_checkpoint(self.run_dir):
             if mode == "must":
-                raise CheckpointError(f"resume=true but {self.run_dir / CHECKPOINT_NAME} does not exist (nothing to resume); "
-                                      f"use resume=auto or resume=false")
+                raise CheckpointError(f"resume=true but {self.run_dir / CHECKPOINT_NAME} does not exist (nothing to "
+                                      f"resume); use resume=auto or resume=false")
             for name in RUN_FILES:   # leftovers of a run killed before its first checkpoint
                 (self.run_dir / name).unlink(missing_ok=True)
             return self._fork() if self.cfg.get("fork_from") else None

@@ -45,8 +45,9 @@ them (so the recorded actions replay exactly); anything it draws at random comes
 ``<key>`` is the first 16 hex digits of the sha256 of the generation task, dataset type, policy
 checksum, number of episodes, seed, MuJoCo version and the generator version: any change gives a
 new file. Files are written atomically and validated on load; a corrupt file raises
-:class:`~loco_il.datasets.DatasetError` naming it, and ``regenerate=True`` rebuilds it (`train.py ... dataset.regenerate=true`). A cache folder that cannot be
-written is reported before the episodes are generated; they are then used without being cached.
+:class:`~loco_il.datasets.DatasetError` naming it, and ``regenerate=True`` rebuilds it (`train.py ...
+dataset.regenerate=true`). A cache folder that cannot be written is reported before the episodes are
+generated; they are then used without being cached (kept in memory for the process, `UNCACHED`).
 """
 from __future__ import annotations
 
