@@ -156,8 +156,8 @@ def to_csv(rows: Sequence[Mapping[str, Any]]) -> str:
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(CSV_HEADER)
     for r in rows:
-        w.writerow([r["task"], r["dataset"], r["algorithm"], r["budget"], r["n_seeds"], " ".join(str(s) for s in r["seeds"]),
-                    _num(r["return_mean"], 4), _num(r["return_ci95"], 4), _num(r["normalized_mean"], 4),
+        w.writerow([r["task"], r["dataset"], r["algorithm"], r["budget"], r["n_seeds"],
+                    " ".join(str(s) for s in r["seeds"]), _num(r["return_mean"], 4), _num(r["return_ci95"], 4), _num(r["normalized_mean"], 4),
                     _num(r["normalized_ci95"], 4), r["published"] or "", r["published_source"] or ""])
     return buf.getvalue()
 
