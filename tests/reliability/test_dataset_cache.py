@@ -23,3 +23,15 @@ def test_train_with_a_read_only_dataset_cache(env_vars, tmp_path, make_read_only
     assert "Traceback" not in proc.stderr
     assert (run_dir(results) / "eval.json").is_file()
     assert not any(cache.iterdir())
+
+
+@pytest.mark.slow
+def test_dataset_regenerate_rebuilds_the_cached_dataset(env_vars, tmp_path):
+    """The advice in dataset errors, `dataset.regenerate=true`, is a real key: the dataset is generated again."""
+    from train_helpers import train
+    short = ["algo=bc", "n_steps=10", "eval.every=10", "eval.final_episodes=1", "eval.similarity=false"]
+    train(env_vars, tmp_path / "r", *short)                        # generates the dataset or finds it cached
+    again = train(env_vars, tmp_path / "r", *short, "name=regen", "dataset.regenerate=true")
+    assert "generating perfect dataset of InvertedPendulum.balance: 12 episodes" in again.stderr
+    cached = train(env_vars, tmp_path / "r", *short, "name=cached")
+    assert "generating" not in cached.stderr
