@@ -111,12 +111,8 @@ def _for_env(data: Trajectories, env: Any, full_obs: bool) -> Trajectories:
     mask = getattr(env, "obs_mask", None)
     if full is None:
         return data
-    names = data.info.get("obs_names")
-    if data.obs_dim != full.dim or (names is not None and list(names) != list(full.names)):
-        raise DatasetError(f"the dataset of {env.task_id} has {data.obs_dim} observation entries "
-                           f"{'' if names is None else '(' + ', '.join(names[:4]) + ', ...) '}but the env's full "
-                           f"observation has {full.dim} ({', '.join(full.names[:4])}, ...); regenerate the dataset "
-                           f"(create_dataset(env, regenerate=True))")
+    from loco_il.datasets.env_check import check_dataset_for_env, warn
+    warn(check_dataset_for_env(data, env))   # refuses a dataset of another task, observation or action scale
     info = dict(data.info)
     if info.get("task_id") not in (None, env.task_id):
         info.setdefault("generated_in", info["task_id"])   # e.g. a variant's data from the base body's expert

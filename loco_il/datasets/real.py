@@ -295,8 +295,8 @@ def real_provider(env: Any, *, clips: Optional[Iterable[Any]] = None, options: A
 
     from loco_il.datasets.mocap.retarget import RETARGET_VERSION, RetargetOptions
     from loco_il.datasets.mocap.robot_maps import ROBOT_MAPS, has_robot_map
-    from loco_il.datasets.providers.expert import (InitStates, cache_key, datasets_cache_dir, generation_env,
-                                                   init_states_path, task_key)
+    from loco_il.datasets.providers.expert import (InitStates, _regen_hint, cache_key, datasets_cache_dir,
+                                                   generation_env, init_states_path, save_to_cache, task_key)
 
     for name in ("expert", "expert_path", "snapshots"):
         if unused.pop(name, None) is not None:
@@ -340,7 +340,7 @@ def real_provider(env: Any, *, clips: Optional[Iterable[Any]] = None, options: A
         safe = "".join(c if c.isalnum() or c in "-_." else "_" for c in key)
         path = datasets_cache_dir() / safe / f"real-n{len(specs)}-{hkey}.npz"
         side = init_states_path(path)
-        hint = f"call create_dataset(env, regenerate=True) to rebuild it (or delete {path})"
+        hint = _regen_hint(path)
         if not regenerate and path.exists() and side.exists():
             data = Trajectories.load(path, regenerate_hint=hint,
                                      expect={"cache_key": hkey, "obs_names": list(gen_env.full_obs_spec.names),
@@ -370,8 +370,7 @@ def real_provider(env: Any, *, clips: Optional[Iterable[Any]] = None, options: A
                  f"{quality['keypoint_error_m']:.3f} m, foot sliding {quality['foot_sliding_mps']:.3f} m/s, "
                  f"penetration {quality['penetration_mean_m']:.4f} / {quality['penetration_max_m']:.4f} m "
                  f"(mean / max), joints in limits {100 * quality['in_limits_fraction']:.1f}% of frames")
-        init.save(side)
-        data.save(path)
+        save_to_cache(path, data, init)   # a cache that cannot be written only warns
         return data, init
     finally:
         gen_env.stop()

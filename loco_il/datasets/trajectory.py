@@ -574,6 +574,12 @@ class Trajectories:
 
         if not path.is_file():
             raise fail("the file does not exist")
+        # a file named .npz that is no archive is a damaged dataset (rebuilt by the hint); any other file that is no
+        # archive (a log.csv, an .npy) is not a dataset at all: nothing to rebuild or delete, the path is wrong
+        kind = None if path.suffix == ".npz" else _not_an_archive(path)
+        if kind:
+            raise DatasetError(f"'{path}' is not a dataset file: it is {kind}, and a dataset is the .npz archive "
+                               f"written by Trajectories.save; check the path")
         try:
             with np.load(path, allow_pickle=False) as z:
                 keys = set(z.files)
@@ -628,6 +634,23 @@ class Trajectories:
             if have != want_n:
                 out.append(f"{key} is {have!r}, expected {want_n!r}")
         return out
+
+
+def _not_an_archive(path: pathlib.Path) -> Optional[str]:
+    """What `path` is when it is not a zip archive (an .npz is one, also when truncated: its first bytes stay)."""
+    with open(path, "rb") as fh:
+        head = fh.read(512)
+    if head.startswith(b"PK\x03\x04"):
+        return None
+    if head.startswith(b"\x93NUMPY"):
+        return "a single .npy array"
+    if not head:
+        return "an empty file"
+    try:
+        head.decode("utf-8")
+        return "a text file"
+    except UnicodeDecodeError:
+        return "not an .npz archive"
 
 
 def _fsync_dir(directory: pathlib.Path) -> None:

@@ -328,7 +328,8 @@ class LocoEnv(Environment):
         a = np.asarray(action, dtype=np.float64)
         if a.shape != (self.model.nu,):
             raise ValueError(f"{self.task_id}: action must have shape ({self.model.nu},), got {np.shape(action)}")
-        if not math.isfinite(a.sum()):   # one reduction catches any NaN or inf
+        # element-wise: a sum would overflow for finite values near the float maximum (merely clipped below)
+        if not np.isfinite(a).all():
             raise ValueError(f"{self.task_id}: action contains NaN or inf: {a}")
         a = a.clip(-1.0, 1.0)
         self.data.ctrl[:] = self._ctrl_center + a * self._ctrl_half
@@ -409,6 +410,10 @@ class LocoEnv(Environment):
     def render(self, record: bool = False) -> np.ndarray | None:
         from loco_il.environments.rendering import render_frame
         return render_frame(self)
+
+    def close(self) -> None:
+        """`stop()` under the name Gymnasium users expect."""
+        self.stop()
 
     def stop(self) -> None:
         if self._renderer is not None:

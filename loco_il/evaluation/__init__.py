@@ -37,12 +37,13 @@ def evaluate_policy(env: Any, policy: Callable[[np.ndarray], np.ndarray], episod
     `terminated` counts the episodes that ended in a terminal state before the horizon (on the locomotion
     tasks, a fall), so a low mean can be told apart as a few falls or a worse gait throughout."""
     from loco_il.datasets.providers.expert import episode_seeds
-    returns, lengths, observations = [], [], []
+    returns, lengths, observations, starts = [], [], [], []
     terminated = 0
     horizon = int(env.info.horizon)
     for s in episode_seeds(seed, episodes):
         env.seed(int(s))
         obs = env.reset()
+        starts.append(np.asarray(obs, dtype=np.float64).tobytes())
         total, t = 0.0, 0
         for t in range(1, horizon + 1):
             if collect_obs:
@@ -54,7 +55,9 @@ def evaluate_policy(env: Any, policy: Callable[[np.ndarray], np.ndarray], episod
                 break
         returns.append(total)
         lengths.append(t)
-    outcomes = {(round(r, 9), n) for r, n in zip(returns, lengths)}
+    # episodes are identical only when their starts are too: equal returns from different starts (every
+    # episode balancing to the horizon) are distinct episodes, not a sign of a start without reset noise
+    outcomes = {(start, round(r, 9), n) for start, r, n in zip(starts, returns, lengths)}
     out = {"returns": returns, "lengths": lengths, "episodes": int(episodes), "eval_seed": int(seed),
            "return_mean": float(np.mean(returns)), "return_std": float(np.std(returns)),
            "length_mean": float(np.mean(lengths)), "terminated": terminated, "distinct_episodes": len(outcomes)}
@@ -182,7 +185,7 @@ def format_eval_table(results: Sequence[Mapping[str, Any]]) -> str:
         sim = r.get("similarity") or {}
         ret = f"{r['return_mean']:.2f} ± {r['return_std']:.2f}"
         lines.append("| " + " | ".join([r.get("task", "?"), r.get("dataset_type", "?"), r.get("name", "?"),
-                                        str(r.get("seed", "?")), str(r.get("steps", "?")), str(r.get("episodes")),
+                                        str(r.get("seed", "?")), _fmt(r.get("steps")), str(r.get("episodes")),
                                         ret, "n/a" if r.get("normalized_score") is None else f"{r['normalized_score']:.3f}",
                                         _fmt(sim.get("nn_distance"), 3),
                                         _fmt(sim.get("mmd"), 3)]) + " |")
@@ -202,32 +205,51 @@ def load_run_config(run_dir: str | Path) -> dict:
         return yaml.safe_load(fh)
 
 
+class RunFileError(ValueError):
+    """A run file that cannot be used (damaged, truncated, not a loco_il file): one-line message naming it."""
+
+
+def load_final_agent(path: str | Path, device: str = "cpu") -> Any:
+    """`final_agent.pt`, verified against `final_agent.pt.sha256` when the run recorded one."""
+    from loco_il.algorithms.common.agent_base import ILAgent
+    from loco_il.utils.hashing import ChecksumMismatchError, verify_sidecar
+    try:
+        verify_sidecar(path)
+        return ILAgent.load(path, device=device)
+    except ChecksumMismatchError as exc:
+        raise RunFileError(f"{exc}; delete it to score the run's checkpoint.pt instead") from None
+    except (OSError, RuntimeError, EOFError, ValueError, KeyError) as exc:
+        raise RunFileError(f"cannot read {path} ({type(exc).__name__}: {str(exc).splitlines()[0][:120]}): the file is "
+                           f"damaged or truncated; delete it to score the run's checkpoint.pt instead") from None
+
+
 def load_run_agent(run_dir: str | Path, device: str = "cpu",
                    checkpoint: str | Path | None = None) -> tuple[Any, str]:
     """The trained agent of a run (`final_agent.pt`, else the latest `checkpoint.pt`) and which file it was.
-    `checkpoint`: a train.py checkpoint file of this run to load instead (e.g. a copy kept from an earlier step)."""
+    `checkpoint`: a train.py checkpoint file of this run to load instead (e.g. a copy kept from an earlier step).
+    Files with a recorded sha256 are verified first (`RunFileError` / `CheckpointError` naming a damaged one)."""
     import torch
 
     from loco_il.algorithms import factory
-    from loco_il.algorithms.common.agent_base import ILAgent
     from loco_il.environments.registry import make
+    from loco_il.experiment.checkpoint import has_checkpoint, load_checkpoint, load_run_checkpoint
     run_dir = Path(run_dir)
     if checkpoint is not None:
         ckpt_path = Path(checkpoint)
         if not ckpt_path.is_file():
             raise FileNotFoundError(f"checkpoint {ckpt_path} does not exist")
+        ckpt = load_checkpoint(ckpt_path)
     else:
         final = run_dir / "final_agent.pt"
         if final.is_file():
-            return ILAgent.load(final, device=device), str(final)
-        ckpt_path = run_dir / "checkpoint.pt"
-        if not ckpt_path.is_file():
+            return load_final_agent(final, device=device), str(final)
+        if not has_checkpoint(run_dir):
             raise FileNotFoundError(f"{run_dir} has neither final_agent.pt nor checkpoint.pt (was the run started?)")
+        ckpt, ckpt_path = load_run_checkpoint(run_dir, repair=False)
     cfg = load_run_config(run_dir)
     env = make(cfg["task_id"])
     torch.manual_seed(int(cfg.get("seed", 0)))
     agent = factory.build_agent(cfg["algo"]["name"], env.info, cfg["algo"], seed=cfg.get("seed"), device=device)
-    ckpt = torch.load(ckpt_path, map_location="cpu", weights_only=False)
     agent.load_state_dict(ckpt["agent"])
     env.stop()
     return agent, f"{ckpt_path} (step {ckpt['counters'].get('step')}, training not finished)"

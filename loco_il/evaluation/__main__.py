@@ -21,28 +21,52 @@ USAGE = __doc__
 _BOOL = {"true": True, "1": True, "yes": True, "false": False, "0": False, "no": False}
 
 
+class UsageError(ValueError):
+    """Command-line misuse: printed as one line, exit status 2."""
+
+
+def _int_arg(args: dict[str, str], key: str, default: int | None, minimum: int) -> int | None:
+    """`key`'s value as an integer >= `minimum` (a one-line `UsageError` naming the key otherwise)."""
+    if key not in args:
+        return default
+    try:
+        value = int(args[key])
+    except ValueError:
+        value = None
+    if value is None or value < minimum:
+        raise UsageError(f"{key}={args[key]}: expected an integer >= {minimum} (e.g. {key}={max(minimum, 10)})")
+    return value
+
+
+def _bool_arg(args: dict[str, str], key: str) -> bool:
+    value = args.get(key, "true").lower()
+    if value not in _BOOL:
+        raise UsageError(f"{key}={args[key]}: expected true or false")
+    return _BOOL[value]
+
+
 def parse_args(argv: list[str]) -> tuple[str, dict[str, str]]:
     command = "score"
     if argv and "=" not in argv[0] and not argv[0].startswith("-"):
         command = argv.pop(0)
     if command not in ("score", "record"):
-        raise SystemExit(f"unknown command {command!r}; expected 'record' or key=value arguments\n\n{USAGE}")
+        raise UsageError(f"unknown command {command!r}; expected 'record' or key=value arguments (see --help)")
     args = {}
     for item in argv:
         if item in ("-h", "--help"):
             print(USAGE)
             raise SystemExit(0)
         if "=" not in item:
-            raise SystemExit(f"expected key=value, got {item!r}\n\n{USAGE}")
+            raise UsageError(f"expected key=value, got {item!r} (see --help)")
         key, value = item.split("=", 1)
         args[key.lstrip("+")] = value
     allowed = {"score": {"run_dir", "episodes", "seed", "similarity", "max_points", "out", "deterministic"},
                "record": {"run_dir", "out", "seed", "max_steps"}}[command]
     unknown = sorted(set(args) - allowed)
     if unknown:
-        raise SystemExit(f"unknown argument(s) {unknown} for {command!r}; accepted: {sorted(allowed)}")
+        raise UsageError(f"unknown argument(s) {unknown} for {command!r}; accepted: {sorted(allowed)}")
     if "run_dir" not in args:
-        raise SystemExit(f"run_dir=<run dir> is required\n\n{USAGE}")
+        raise UsageError("run_dir=<run dir> is required (see --help)")
     return command, args
 
 
@@ -57,25 +81,26 @@ def _reexec_with_gl_backend(argv: list[str]) -> None:
 def main(argv: list[str] | None = None) -> int:
     import torch
     torch.set_num_threads(1)
-    from loco_il.evaluation import evaluate_run, format_eval_table, record_run, write_json
+    from loco_il.evaluation import RunFileError, evaluate_run, format_eval_table, record_run, write_json
+    from loco_il.experiment.checkpoint import CheckpointError
     from loco_il.experiment.logging import _jsonable
-    command, args = parse_args(list(sys.argv[1:] if argv is None else argv))
     try:
+        command, args = parse_args(list(sys.argv[1:] if argv is None else argv))
         if command == "record":
+            seed, max_steps = _int_arg(args, "seed", 0, 0), _int_arg(args, "max_steps", None, 1)
             if argv is None:
                 _reexec_with_gl_backend(sys.argv[1:])
             out = args.get("out", "video.mp4")
-            res = record_run(args["run_dir"], out, seed=int(args.get("seed", 0)),
-                             max_steps=int(args["max_steps"]) if "max_steps" in args else None)
+            res = record_run(args["run_dir"], out, seed=seed, max_steps=max_steps)
             print(f"wrote {res['path']}: return {res['return']:.2f} over {res['steps']} steps "
                   f"(policy: {res['agent_file']})")
             return 0
-        res = evaluate_run(args["run_dir"], episodes=int(args.get("episodes", 10)),
-                           seed=int(args["seed"]) if "seed" in args else None,
-                           similarity=_BOOL[args.get("similarity", "true").lower()],
-                           max_points=int(args.get("max_points", 1000)),
-                           deterministic=_BOOL[args.get("deterministic", "true").lower()])
-    except FileNotFoundError as exc:
+        episodes, seed = _int_arg(args, "episodes", 10, 1), _int_arg(args, "seed", None, 0)
+        max_points = _int_arg(args, "max_points", 1000, 2)
+        similarity, deterministic = _bool_arg(args, "similarity"), _bool_arg(args, "deterministic")
+        res = evaluate_run(args["run_dir"], episodes=episodes, seed=seed, similarity=similarity,
+                           max_points=max_points, deterministic=deterministic)
+    except (UsageError, FileNotFoundError, RunFileError, CheckpointError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     res["steps"] = _trained_steps(args["run_dir"])
@@ -88,12 +113,16 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-def _trained_steps(run_dir: str):
+def _trained_steps(run_dir: str) -> int | None:
+    """Steps the scored policy was trained for: eval.json's, else the step of the run's latest checkpoint."""
     from pathlib import Path
+
+    from loco_il.experiment.checkpoint import read_checkpoint_summary
     path = Path(run_dir) / "eval.json"
     if path.is_file():
         return json.loads(path.read_text()).get("steps")
-    return None
+    summary = read_checkpoint_summary(run_dir)
+    return summary["step"] if summary else None
 
 
 if __name__ == "__main__":

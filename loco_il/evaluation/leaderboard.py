@@ -1,13 +1,14 @@
 """Leaderboard of finished runs: `python -m loco_il.evaluation.leaderboard results/ [--out DIR] [--no-plots]`.
 
 Reads every `eval.json` below the given folder (one per `train.py` run; run dirs need not follow any
-layout), groups the runs by (task, dataset type, algorithm label `name`) and writes to `--out`
+layout), groups the runs by (task, dataset type, algorithm label `name`, training budget) and writes to `--out`
 (default: the folder itself):
 
-* `leaderboard.md` and `leaderboard.csv`: per group the number of seeds and mean ± 95 % confidence
-  interval over seeds of the final return and the normalized score. The interval is the Student-t one,
-  mean ± t(0.975, n-1) * s / sqrt(n) with the sample standard deviation s; with a single seed there is
-  no interval. Each seed contributes its final evaluation's mean return (eval.json `return_mean`).
+* `leaderboard.md` and `leaderboard.csv`: per group its budget (eval.json `steps` with its unit: env steps,
+  or gradient steps for offline BC; runs of different budgets are never pooled), the number of seeds and
+  mean ± 95 % confidence interval over seeds of the final return and the normalized score. The interval is
+  the Student-t one, mean ± t(0.975, n-1) * s / sqrt(n) with the sample standard deviation s; with a single
+  seed there is no interval. Each seed contributes its final evaluation's mean return (eval.json `return_mean`).
 * `curves/<task>.<dataset>.png`: evaluation return against training steps per algorithm (mean and 95 % CI
   over the seeds that logged each step), from the runs' `log.csv`.
 * a "published" column with scores from `published.yaml` (next to this file) where one exists for the
@@ -31,8 +32,8 @@ PUBLISHED_FILE = Path(__file__).with_name("published.yaml")
 NO_PUBLISHED = "n/a"
 PUBLISHED_NOTE = ("published: scores from loco_il/evaluation/published.yaml. LocoMuJoCo publishes no baseline "
                   "scores (loco-mujoco issue #13); \"n/a\" = no published number for that row.")
-CSV_HEADER = ("task", "dataset", "algorithm", "n_seeds", "seeds", "return_mean", "return_ci95", "normalized_mean",
-              "normalized_ci95", "published", "published_source")
+CSV_HEADER = ("task", "dataset", "algorithm", "budget", "n_seeds", "seeds", "return_mean", "return_ci95",
+              "normalized_mean", "normalized_ci95", "published", "published_source")
 
 
 # ----------------------------------------------------------------------------- statistics
@@ -88,13 +89,25 @@ def _published_for(entries: Iterable[Mapping[str, Any]], task: str, dataset: str
     return None, None
 
 
+def budget_of(run: Mapping[str, Any]) -> tuple[int, str]:
+    """(steps, unit) a run trained for: eval.json's `steps` and `step_unit` (-1 when unknown, sorted first)."""
+    steps = run.get("steps")
+    return (int(steps) if isinstance(steps, (int, float)) else -1), str(run.get("step_unit") or "steps")
+
+
+def budget_label(budget: tuple[int, str]) -> str:
+    steps, unit = budget
+    return f"{steps} {unit}" if steps >= 0 else "unknown"
+
+
 def aggregate(runs: Sequence[Mapping[str, Any]], published: Sequence[Mapping[str, Any]] = ()) -> list[dict[str, Any]]:
-    """One row per (task, dataset, algorithm label), sorted by those keys."""
-    groups: dict[tuple[str, str, str], list[Mapping[str, Any]]] = {}
+    """One row per (task, dataset, algorithm label, budget), sorted by those keys: runs trained for different
+    numbers of steps are different experiments, so their returns are not averaged together."""
+    groups: dict[tuple[str, str, str, tuple[int, str]], list[Mapping[str, Any]]] = {}
     for r in runs:
-        groups.setdefault((r["task"], r["dataset_type"], str(r["name"])), []).append(r)
+        groups.setdefault((r["task"], r["dataset_type"], str(r["name"]), budget_of(r)), []).append(r)
     rows = []
-    for (task, dataset, name), members in sorted(groups.items()):
+    for (task, dataset, name, budget), members in sorted(groups.items()):
         members = sorted(members, key=lambda r: (r.get("seed") is None, r.get("seed")))
         ret_mean, ret_ci = mean_ci([m["return_mean"] for m in members])
         norms = [m.get("normalized_score") for m in members]
@@ -104,7 +117,8 @@ def aggregate(runs: Sequence[Mapping[str, Any]], published: Sequence[Mapping[str
             norm_mean, norm_ci = None, None
         algorithm = str(members[0].get("algorithm", name))
         pub, src = _published_for(published, task, dataset, algorithm)
-        rows.append({"task": task, "dataset": dataset, "algorithm": name, "n_seeds": len(members),
+        rows.append({"task": task, "dataset": dataset, "algorithm": name, "budget": budget_label(budget),
+                     "n_seeds": len(members),
                      "seeds": [m.get("seed") for m in members], "return_mean": ret_mean, "return_ci95": ret_ci,
                      "normalized_mean": norm_mean, "normalized_ci95": norm_ci, "published": pub,
                      "published_source": src, "run_dirs": [m["run_dir"] for m in members]})
@@ -123,10 +137,10 @@ def to_markdown(rows: Sequence[Mapping[str, Any]]) -> str:
              "Mean ± 95 % confidence interval over seeds (Student-t, n-1 degrees of freedom; no interval for a "
              "single seed) of each run's final evaluation return. Normalized score: 0 = uniform random actions, "
              "1 = the task's expert (loco_il/datasets/baselines.yaml); n/a where the task has no baseline.", "",
-             "| task | dataset | algorithm | seeds | return | normalized | published |",
-             "|---|---|---|---|---|---|---|"]
+             "| task | dataset | algorithm | budget | seeds | return | normalized | published |",
+             "|---|---|---|---|---|---|---|---|"]
     for r in rows:
-        lines.append(f"| {r['task']} | {r['dataset']} | {r['algorithm']} | {r['n_seeds']} | "
+        lines.append(f"| {r['task']} | {r['dataset']} | {r['algorithm']} | {r['budget']} | {r['n_seeds']} | "
                      f"{_pm(r['return_mean'], r['return_ci95'], 2)} | "
                      f"{_pm(r['normalized_mean'], r['normalized_ci95'], 3)} | {r['published'] or NO_PUBLISHED} |")
     lines += ["", PUBLISHED_NOTE, ""]
@@ -142,8 +156,8 @@ def to_csv(rows: Sequence[Mapping[str, Any]]) -> str:
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(CSV_HEADER)
     for r in rows:
-        w.writerow([r["task"], r["dataset"], r["algorithm"], r["n_seeds"], " ".join(str(s) for s in r["seeds"]),
-                    _num(r["return_mean"], 4), _num(r["return_ci95"], 4), _num(r["normalized_mean"], 4),
+        w.writerow([r["task"], r["dataset"], r["algorithm"], r["budget"], r["n_seeds"],
+                    " ".join(str(s) for s in r["seeds"]), _num(r["return_mean"], 4), _num(r["return_ci95"], 4), _num(r["normalized_mean"], 4),
                     _num(r["normalized_ci95"], 4), r["published"] or "", r["published_source"] or ""])
     return buf.getvalue()
 
@@ -176,7 +190,8 @@ def plot_curves(rows: Sequence[Mapping[str, Any]], out_dir: str | Path) -> list[
             stats = [mean_ci(per_step[s]) for s in steps]
             mean = np.array([m for m, _ in stats])
             half = np.array([h if h is not None else 0.0 for _, h in stats])
-            line, = ax.plot(steps, mean, label=f"{r['algorithm']} ({r['n_seeds']} seed{'s' if r['n_seeds'] > 1 else ''})")
+            line, = ax.plot(steps, mean, label=f"{r['algorithm']}, {r['budget']} "
+                                               f"({r['n_seeds']} seed{'s' if r['n_seeds'] > 1 else ''})")
             ax.fill_between(steps, mean - half, mean + half, alpha=0.2, color=line.get_color())
             plotted = True
         if plotted:

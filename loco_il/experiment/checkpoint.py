@@ -14,9 +14,15 @@ the previous checkpoint intact) holds::
      "finished": bool}
 
 Beside it, `<run_dir>/checkpoint.json` names the step it holds (`{"step", "env_steps", "wall_time",
-"finished", "saved_at"}`), so tools such as `loco_il.evaluation.progress` can say where a stopped run resumes
-without loading a file of up to hundreds of MB. It is written right after the checkpoint, so a kill between
-the two leaves it naming the previous checkpoint, never one that does not exist.
+"finished", "saved_at", "sha256", "previous"}`), so tools such as `loco_il.evaluation.progress` can say where a
+stopped run resumes without loading a file of up to hundreds of MB. It is written right after the checkpoint, so
+a kill between the two leaves it naming the previous checkpoint, never one that does not exist.
+
+The last two checkpoints are kept: a new one moves the old `checkpoint.pt` to `checkpoint.prev.pt`, and
+`checkpoint.json` records the sha256 of both (`sha256`, `previous.sha256`). `load_run_checkpoint` verifies a
+checkpoint against them before anything resumes or forks from it: a damaged `checkpoint.pt` (or one written
+while the run was killed, before its checksum was recorded) is set aside as `checkpoint.pt.damaged` and the run
+resumes from the previous one, saying so; with no verified checkpoint left it refuses, naming the file.
 
 Checkpoints are taken at chunk boundaries (after a whole `Core.learn` call), where mushroom-rl's
 Core holds no state of its own: it resets the environment at the start of every `learn` call.
@@ -26,27 +32,32 @@ and ends with the same total number of steps as an uninterrupted run.
 from __future__ import annotations
 
 import datetime
+import hashlib
 import json
 import os
 import random
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Callable, Mapping
 
 import numpy as np
 import torch
 
-from loco_il.utils.atomic import atomic_open, atomic_torch_save
+from loco_il.utils.atomic import atomic_open
+from loco_il.utils.hashing import file_sha256
 
 FORMAT = "loco_il.run_checkpoint/v1"
 CHECKPOINT_NAME = "checkpoint.pt"
 CHECKPOINT_SUMMARY_NAME = "checkpoint.json"
+PREVIOUS_CHECKPOINT_NAME = "checkpoint.prev.pt"
+DAMAGED_SUFFIX = ".damaged"
 
 #: keys of the run config (dotted where nested) that may change between a run and its resumption
 RESUMABLE_KEYS = frozenset({"resume", "stop_after_steps", "logger", "eval", "n_steps", "checkpoint_every",
                             "checkpoint_replay", "fork_from", "keep_checkpoints_above",
                             "device", "torch_threads", "results_dir", "per_algo",
                             "algo.params.cuda_graph",  # how an update is launched, not what it computes
-                            "dataset.workers"})  # how many processes generate the dataset, not what it holds
+                            "dataset.workers",      # how many processes generate the dataset, not what it holds
+                            "dataset.regenerate"})  # rebuilds the same data (the generation is deterministic)
 #: config keys added after runs may have been checkpointed, with the value that behaves as those runs did:
 #: a checkpoint without the key resumes when the new config holds that value
 ADDED_KEYS: dict[str, Any] = {"init_state": "default", "algo.policy.log_std_bounds": [-20.0, 2.0],
@@ -106,30 +117,62 @@ def load_agent_extra_state(agent: Any, extra: Mapping[str, Any]) -> None:
         agent.replay.load_state_dict(extra["replay"])
 
 
+class _HashingWriter:
+    """A file wrapper that hashes what `torch.save` writes, so no second pass over a large file is needed."""
+
+    def __init__(self, handle):
+        self.handle, self.digest = handle, hashlib.sha256()
+
+    def write(self, data) -> int:
+        self.digest.update(data)
+        return self.handle.write(data)
+
+    def flush(self) -> None:
+        self.handle.flush()
+
+
 def save_checkpoint(path: str | os.PathLike, *, agent: Any, env: Any, counters: Mapping[str, Any],
                     wall_time: float, config: Mapping[str, Any], wandb_id: str | None = None,
                     finished: bool = False, extra: Mapping[str, Any] | None = None,
                     include_replay: bool = True) -> None:
-    atomic_torch_save({"format": FORMAT, "agent": agent.state_dict(),
-                       "agent_extra": agent_extra_state(agent, include_replay),
-                       "counters": dict(counters), "rng": global_rng_state(), "env_rng": env_rng_state(env),
-                       "wall_time": float(wall_time), "config": dict(config), "wandb_id": wandb_id,
-                       "finished": bool(finished), "extra": dict(extra or {})}, path)
+    path = Path(path)
+    old = _read_summary(path.parent)
+    state = {"format": FORMAT, "agent": agent.state_dict(), "agent_extra": agent_extra_state(agent, include_replay),
+             "counters": dict(counters), "rng": global_rng_state(), "env_rng": env_rng_state(env),
+             "wall_time": float(wall_time), "config": dict(config), "wandb_id": wandb_id,
+             "finished": bool(finished), "extra": dict(extra or {})}
+    previous = old.get("previous")
+    with atomic_open(path) as fh:
+        writer = _HashingWriter(fh)
+        torch.save(state, writer)
+        if path.is_file():   # keep the last two: the one being replaced becomes the previous one
+            os.replace(path, path.with_name(PREVIOUS_CHECKPOINT_NAME))
+            previous = {"step": old.get("step"), "sha256": old.get("sha256")}
     summary = {"step": int(counters.get("step", 0)), "env_steps": int(counters.get("env_steps", 0)),
                "wall_time": float(wall_time), "finished": bool(finished),
-               "saved_at": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
-    with atomic_open(Path(path).with_name(CHECKPOINT_SUMMARY_NAME), "w") as fh:
-        json.dump(summary, fh)
+               "saved_at": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+               "sha256": writer.digest.hexdigest(), "previous": previous}
+    _write_summary(path.parent, summary)
+
+
+def _write_summary(run_dir: Path, summary: Mapping[str, Any]) -> None:
+    with atomic_open(run_dir / CHECKPOINT_SUMMARY_NAME, "w") as fh:
+        json.dump(dict(summary), fh)
+
+
+def _read_summary(run_dir: str | os.PathLike) -> dict[str, Any]:
+    try:
+        summary = json.loads((Path(run_dir) / CHECKPOINT_SUMMARY_NAME).read_text())
+    except (OSError, ValueError):
+        return {}
+    return summary if isinstance(summary, dict) else {}
 
 
 def read_checkpoint_summary(run_dir: str | os.PathLike) -> dict[str, Any] | None:
     """`<run_dir>/checkpoint.json` (see the module doc), or None when absent or unreadable (runs
     checkpointed before it existed have only `checkpoint.pt`)."""
-    try:
-        summary = json.loads((Path(run_dir) / CHECKPOINT_SUMMARY_NAME).read_text())
-    except (OSError, ValueError):
-        return None
-    return summary if isinstance(summary, dict) and isinstance(summary.get("step"), int) else None
+    summary = _read_summary(run_dir)
+    return summary if isinstance(summary.get("step"), int) else None
 
 
 def load_checkpoint(path: str | os.PathLike) -> dict[str, Any]:
@@ -143,6 +186,55 @@ def load_checkpoint(path: str | os.PathLike) -> dict[str, Any]:
         raise CheckpointError(f"{path} is not a loco_il run checkpoint (format {FORMAT}); delete it or run with "
                               f"resume=false to start over")
     return ckpt
+
+
+def has_checkpoint(run_dir: str | os.PathLike) -> bool:
+    run_dir = Path(run_dir)
+    return (run_dir / CHECKPOINT_NAME).is_file() or (run_dir / PREVIOUS_CHECKPOINT_NAME).is_file()
+
+
+def load_run_checkpoint(run_dir: str | os.PathLike, note: Callable[[str], None] = print,
+                        repair: bool = True) -> tuple[dict[str, Any], Path]:
+    """The newest checkpoint of `run_dir` whose sha256 matches one recorded in its `checkpoint.json`, and its path.
+
+    A checkpoint that does not match is reported through `note`; with `repair` (the run's own process, holding
+    its lock) it is set aside as `<name>.damaged` and a verified previous checkpoint becomes `checkpoint.pt` again,
+    so the next save keeps a consistent pair. Runs checkpointed before checksums existed (no `sha256` in
+    `checkpoint.json`) load unverified. Raises `CheckpointError` naming the file when none verifies."""
+    run_dir = Path(run_dir)
+    current, previous = run_dir / CHECKPOINT_NAME, run_dir / PREVIOUS_CHECKPOINT_NAME
+    summary = _read_summary(run_dir)
+    if not summary.get("sha256"):
+        return load_checkpoint(current), current
+    prev_entry = summary.get("previous") or {}
+    known = {summary["sha256"]: summary.get("step"), prev_entry.get("sha256"): prev_entry.get("step")}
+    known.pop(None, None)
+    bad = []
+    for path in (current, previous):
+        if not path.is_file():
+            continue
+        digest = file_sha256(path)
+        if digest not in known:
+            bad.append(path)
+            continue
+        ckpt = load_checkpoint(path)
+        if bad:
+            note(f"{bad[0]} does not match the sha256 recorded in {CHECKPOINT_SUMMARY_NAME} (damaged, or written "
+                 f"while the run was killed); resuming from the previous checkpoint {path.name} "
+                 f"(step {ckpt['counters'].get('step')})")
+        if path != current and repair:
+            if current.is_file():
+                os.replace(current, current.with_name(current.name + DAMAGED_SUFFIX))
+            os.replace(path, current)
+            _write_summary(run_dir, {**summary, "step": int(ckpt["counters"].get("step", 0)),
+                                     "env_steps": int(ckpt["counters"].get("env_steps", 0)),
+                                     "wall_time": float(ckpt.get("wall_time", 0.0)),
+                                     "finished": bool(ckpt.get("finished")), "sha256": digest, "previous": None})
+            path = current
+        return ckpt, path
+    names = " and ".join(str(p) for p in bad) or str(current)
+    raise CheckpointError(f"{names} does not match the sha256 recorded in {run_dir / CHECKPOINT_SUMMARY_NAME} "
+                          f"and no verified checkpoint is left; run with resume=false to start over")
 
 
 def restore(ckpt: Mapping[str, Any], *, agent: Any, env: Any) -> None:
@@ -168,6 +260,7 @@ def config_differences(old: Mapping[str, Any], new: Mapping[str, Any], prefix: s
     return diffs
 
 
-__all__ = ["CHECKPOINT_NAME", "CHECKPOINT_SUMMARY_NAME", "CheckpointError", "save_checkpoint",
-           "read_checkpoint_summary", "load_checkpoint", "restore",
+__all__ = ["CHECKPOINT_NAME", "CHECKPOINT_SUMMARY_NAME", "PREVIOUS_CHECKPOINT_NAME", "CheckpointError",
+           "save_checkpoint", "read_checkpoint_summary", "load_checkpoint", "load_run_checkpoint", "has_checkpoint",
+           "restore",
            "config_differences", "RESUMABLE_KEYS", "ADDED_KEYS"]

@@ -4,8 +4,10 @@
 
 1. checks that the algorithm can learn from the Task-ID's dataset type (`check_dataset_type`), before
    anything slow happens;
-2. resumes from `<run_dir>/checkpoint.pt` when there is one (`resume: auto`, the default, or `true`); a
-   finished run only prints its evaluation; a run dir whose checkpoint has a different config is refused;
+2. locks the run dir for this process (`lock.py`: a second process on it is refused) and resumes from
+   `<run_dir>/checkpoint.pt` when there is one (`resume: auto`, the default, or `true`), verified against the
+   sha256 in `checkpoint.json` (`checkpoint.py`); a finished run only prints its evaluation; a run dir whose
+   checkpoint has a different config is refused;
 3. builds the training env, the expert dataset (its `train` split; the `test` split is kept for the
    trajectory-similarity metrics) and the agent (`loco_il.algorithms.factory.build_agent`);
 4. trains in chunks: online agents through mushroom-rl's `Core.learn(n_steps=chunk, n_steps_per_fit=...)`,
@@ -25,18 +27,22 @@ import math
 import shutil
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 import numpy as np
 import torch
 
-from loco_il.experiment.checkpoint import (CHECKPOINT_NAME, CheckpointError, config_differences, load_checkpoint,
-                                           restore, save_checkpoint)
+from loco_il.experiment.checkpoint import (CHECKPOINT_NAME, CheckpointError, config_differences, has_checkpoint,
+                                           load_checkpoint, load_run_checkpoint, restore, save_checkpoint)
+from loco_il.experiment.lock import RunDirLockedError, run_dir_lock
 from loco_il.experiment.logging import RunLogger, Stopwatch
+from loco_il.utils.hashing import ChecksumMismatchError, verify_sidecar, write_sidecar
 from loco_il.utils.signals import stop_requests
 
-RUN_FILES = ("checkpoint.pt", "checkpoint.json", "final_agent.pt", "eval.json", "log.csv", "log.jsonl")
+RUN_FILES = ("checkpoint.pt", "checkpoint.prev.pt", "checkpoint.pt.damaged", "checkpoint.json", "final_agent.pt",
+             "final_agent.pt.sha256", "eval.json", "log.csv", "log.jsonl")
 #: exit status of `train.py` when `stop_after_steps` stopped a run early (as if it had been killed)
 STOPPED_EXIT_CODE = 3
 #: exit status of `train.py` when SIGINT/SIGTERM stopped a run (after writing a checkpoint)
@@ -68,6 +74,7 @@ def keep_copy(run_dir: Path, step: int) -> Path:
     dest = run_dir / KEPT_DIR / f"step{step}.pt"
     dest.parent.mkdir(exist_ok=True)
     atomic_copy(run_dir / CHECKPOINT_NAME, dest)
+    write_sidecar(dest)   # verified when a fork starts from it
     return dest
 
 
@@ -146,6 +153,8 @@ def apply_per_algo(cfg: dict, cli_overrides: Sequence[str] = ()) -> dict:
 def dataset_kwargs(dcfg: Mapping[str, Any]) -> dict[str, Any]:
     """Keyword arguments of `create_dataset` (besides env and split) from the config's `dataset` group."""
     kwargs = {k: dcfg[k] for k in ("n_episodes", "expert_path", "workers") if dcfg.get(k) is not None}
+    if dcfg.get("regenerate"):   # generate again and replace the cached copy
+        kwargs["regenerate"] = True
     kwargs.update({k: v for k, v in (dcfg.get("provider_kwargs") or {}).items()})
     return dict(n_trajectories=dcfg.get("n_trajectories"), portion=tuple(dcfg.get("portion") or (0.0, 0.75)),
                 seed=int(dcfg.get("split_seed", 0)), generation_seed=int(dcfg.get("generation_seed", 0)),
@@ -160,8 +169,8 @@ def load_datasets(env: Any, dcfg: Mapping[str, Any]):
     portion = common["portion"]
     test = None
     if portion[1] - portion[0] < 1.0:
-        try:
-            test = create_dataset(env, split="test", **{**common, "verbose": False})
+        try:   # the train split's call already regenerated the pool (or kept it in memory): not again
+            test = create_dataset(env, split="test", **{**common, "verbose": False, "regenerate": False})
         except Exception:  # noqa: BLE001 - a pool too small for a test split: similarity uses train
             test = None
     return train, test
@@ -238,21 +247,24 @@ class Runner:
     # ------------------------------------------------------------------ resume
     def _prepare_dir(self) -> dict | None:
         """The checkpoint to resume from (None: fresh start)."""
-        mode = str(self.cfg.get("resume", "auto")).lower()
-        ckpt_path = self.run_dir / CHECKPOINT_NAME
-        if mode in ("false", "0", "no", "never"):
+        from loco_il.experiment.config_schema import ConfigValueError, resume_mode
+        try:
+            mode = resume_mode(self.cfg.get("resume", "auto"))
+        except ConfigValueError as exc:
+            raise ExperimentConfigError(str(exc)) from None
+        if mode == "never":
             for name in RUN_FILES:
                 (self.run_dir / name).unlink(missing_ok=True)
             shutil.rmtree(self.run_dir / "wandb", ignore_errors=True)
             return None
-        if not ckpt_path.is_file():
-            if mode in ("true", "1", "yes", "must"):
-                raise CheckpointError(f"resume=true but {ckpt_path} does not exist (nothing to resume); "
-                                      f"use resume=auto or resume=false")
+        if not has_checkpoint(self.run_dir):
+            if mode == "must":
+                raise CheckpointError(f"resume=true but {self.run_dir / CHECKPOINT_NAME} does not exist (nothing to "
+                                      f"resume); use resume=auto or resume=false")
             for name in RUN_FILES:   # leftovers of a run killed before its first checkpoint
                 (self.run_dir / name).unlink(missing_ok=True)
             return self._fork() if self.cfg.get("fork_from") else None
-        ckpt = load_checkpoint(ckpt_path)
+        ckpt, _ = load_run_checkpoint(self.run_dir, note=lambda msg: print(f"[loco_il] {msg}", flush=True))
         diffs = config_differences(ckpt.get("config") or {}, self.cfg)
         if diffs:
             raise CheckpointError(
@@ -268,9 +280,17 @@ class Runner:
         wins over initial values in the config (init_alpha, ...); the algorithm and task must be the same."""
         src = Path(str(self.cfg["fork_from"])).expanduser()
         src_ckpt = src / CHECKPOINT_NAME if src.is_dir() else src
-        if not src_ckpt.is_file():
+        if not (src_ckpt.is_file() or (src_ckpt.name == CHECKPOINT_NAME and has_checkpoint(src_ckpt.parent))):
             raise CheckpointError(f"fork_from={src}: no checkpoint there (expected {src_ckpt})")
-        ckpt = load_checkpoint(src_ckpt)
+        if src_ckpt.name == CHECKPOINT_NAME:   # a run dir's own checkpoint: verified against its checkpoint.json
+            ckpt, src_ckpt = load_run_checkpoint(src_ckpt.parent, repair=False,
+                                                 note=lambda msg: print(f"[loco_il] fork_from: {msg}", flush=True))
+        else:   # a kept copy: verified against the checksum file next to it
+            try:
+                verify_sidecar(src_ckpt)
+            except ChecksumMismatchError as exc:
+                raise CheckpointError(f"fork_from={src}: {exc}") from None
+            ckpt = load_checkpoint(src_ckpt)
         old = ckpt.get("config") or {}
         for key, new in (("task_id", self.task_id), ("algo.name", self.algo_cfg["name"])):
             head, _, tail = key.partition(".")
@@ -300,7 +320,7 @@ class Runner:
             else:
                 print(line, flush=True)
 
-        with stop_requests(note) as stop:
+        with run_dir_lock(self.run_dir), stop_requests(note) as stop:
             return self._run(stop)
 
     def _run(self, stop) -> dict:
@@ -548,6 +568,7 @@ class Runner:
                 int(ev.get("max_points", 1000)), seed=self.seed)
             result["similarity"]["reference"] = "test split" if ref is not self.train_data else "train split"
         agent.save(self.run_dir / "final_agent.pt")
+        write_sidecar(self.run_dir / "final_agent.pt")   # verified whenever the policy is loaded
         write_json(self.run_dir / "eval.json", result)
         self.logger.summary({"final_return_mean": result["return_mean"], "final_return_std": result["return_std"],
                              "final_normalized_score": score})
@@ -574,22 +595,63 @@ def run(cfg: Any, run_dir: str | Path, cli_overrides: Sequence[str] = ()) -> dic
     return Runner(cfg, run_dir, cli_overrides).run()
 
 
-def main_with_exit_codes(cfg: Any, run_dir: str | Path, cli_overrides: Sequence[str] = ()) -> int:
-    """`run` for command-line use: clean one-line messages and exit codes for expected failures."""
+@dataclass
+class JobOutcome:
+    """How one `train.py` job ended: its exit status and, for a failure, the one-line error (sweep summaries)."""
+    code: int
+    error: str | None = None
+    task_id: str = "?"
+    name: str = "?"
+    seed: Any = "?"
+
+
+def run_job(cfg: Any, run_dir: str | Path, cli_overrides: Sequence[str] = (), catch_all: bool = False) -> JobOutcome:
+    """`run` for command-line use: the config validated first, one-line messages and exit codes for expected
+    failures. `catch_all` (sweeps): an unexpected exception is printed with its traceback and becomes a failed
+    outcome, so the other jobs still run and the summary names it."""
     from loco_il.datasets.trajectory import DatasetError
+    from loco_il.experiment.config_schema import ConfigValueError, validate_config
+    plain = _plain_loose(cfg)
+    outcome = JobOutcome(0, task_id=str(plain.get("task_id", "?")), name=str(plain.get("name", "?")),
+                         seed=plain.get("seed", "?"))
+
+    def failed(code: int, message: str, prefix: str = "[loco_il] error: ") -> JobOutcome:
+        print(f"{prefix}{message}", file=sys.stderr, flush=True)
+        outcome.code, outcome.error = code, message
+        return outcome
+
     try:
-        run(cfg, run_dir, cli_overrides)
+        run(validate_config(cfg), run_dir, cli_overrides)
     except StoppedBySignal as exc:
-        print(f"[loco_il] {exc}", file=sys.stderr, flush=True)
-        return SIGNAL_EXIT_CODE
+        return failed(SIGNAL_EXIT_CODE, str(exc), "[loco_il] ")
     except StopRequested as exc:
-        print(f"[loco_il] {exc}", file=sys.stderr, flush=True)
-        return STOPPED_EXIT_CODE
-    except (CheckpointError, DatasetError, ExperimentConfigError) as exc:
-        print(f"[loco_il] error: {exc}", file=sys.stderr, flush=True)
-        return 2
-    return 0
+        return failed(STOPPED_EXIT_CODE, str(exc), "[loco_il] ")
+    except (ConfigValueError, CheckpointError, DatasetError, ExperimentConfigError, RunDirLockedError) as exc:
+        return failed(2, str(exc))
+    except Exception as exc:  # noqa: BLE001 - sweeps only: the traceback is printed, the summary names the job
+        if not catch_all:
+            raise
+        import traceback
+        traceback.print_exc()
+        return failed(1, f"{type(exc).__name__}: {(str(exc).splitlines() or [''])[0]}")
+    return outcome
+
+
+def _plain_loose(cfg: Any) -> dict:
+    """The config as a dict for naming a job, whatever state it is in (unresolvable values become '?')."""
+    try:
+        return _plain(cfg)
+    except Exception:  # noqa: BLE001 - only used for labels
+        try:
+            return {k: cfg.get(k) for k in ("task_id", "name", "seed")}
+        except Exception:  # noqa: BLE001
+            return {}
+
+
+def main_with_exit_codes(cfg: Any, run_dir: str | Path, cli_overrides: Sequence[str] = ()) -> int:
+    """`run_job`'s exit status."""
+    return run_job(cfg, run_dir, cli_overrides).code
 
 
 __all__ = ["run", "Runner", "load_datasets", "StopRequested", "StoppedBySignal", "ExperimentConfigError",
-           "STOPPED_EXIT_CODE", "SIGNAL_EXIT_CODE", "main_with_exit_codes"]
+           "STOPPED_EXIT_CODE", "SIGNAL_EXIT_CODE", "main_with_exit_codes", "run_job", "JobOutcome"]

@@ -60,21 +60,21 @@ def test_tables_exact(tmp_path):
         "seed) of each run's final evaluation return. Normalized score: 0 = uniform random actions, 1 = the task's "
         "expert (loco_il/datasets/baselines.yaml); n/a where the task has no baseline.\n"
         "\n"
-        "| task | dataset | algorithm | seeds | return | normalized | published |\n"
-        "|---|---|---|---|---|---|---|\n"
-        "| Hopper.run | perfect | bc | 1 | 50.00 | 0.200 | n/a |\n"
-        "| Hopper.run | perfect | lsiq | 3 | 110.00 ± 24.84 | 0.600 ± 0.248 | n/a |\n"
-        "| InvertedPendulum.balance | perfect | sqil | 2 | 950.00 ± 635.31 | n/a | n/a |\n"
+        "| task | dataset | algorithm | budget | seeds | return | normalized | published |\n"
+        "|---|---|---|---|---|---|---|---|\n"
+        "| Hopper.run | perfect | bc | 1000 steps | 1 | 50.00 | 0.200 | n/a |\n"
+        "| Hopper.run | perfect | lsiq | 1000 steps | 3 | 110.00 ± 24.84 | 0.600 ± 0.248 | n/a |\n"
+        "| InvertedPendulum.balance | perfect | sqil | 1000 steps | 2 | 950.00 ± 635.31 | n/a | n/a |\n"
         "\n"
         "published: scores from loco_il/evaluation/published.yaml. LocoMuJoCo publishes no baseline scores "
         "(loco-mujoco issue #13); \"n/a\" = no published number for that row.\n")
     assert (tmp_path / "out" / "leaderboard.md").read_text() == expected_md
     expected_csv = (
-        "task,dataset,algorithm,n_seeds,seeds,return_mean,return_ci95,normalized_mean,normalized_ci95,published,"
-        "published_source\n"
-        "Hopper.run,perfect,bc,1,0,50.0000,,0.2000,,,\n"
-        "Hopper.run,perfect,lsiq,3,0 1 2,110.0000,24.8414,0.6000,0.2484,,\n"
-        "InvertedPendulum.balance,perfect,sqil,2,0 1,950.0000,635.3102,,,,\n")
+        "task,dataset,algorithm,budget,n_seeds,seeds,return_mean,return_ci95,normalized_mean,normalized_ci95,"
+        "published,published_source\n"
+        "Hopper.run,perfect,bc,1000 steps,1,0,50.0000,,0.2000,,,\n"
+        "Hopper.run,perfect,lsiq,1000 steps,3,0 1 2,110.0000,24.8414,0.6000,0.2484,,\n"
+        "InvertedPendulum.balance,perfect,sqil,1000 steps,2,0 1,950.0000,635.3102,,,,\n")
     assert (tmp_path / "out" / "leaderboard.csv").read_text() == expected_csv
 
     curves = sorted(p.name for p in (tmp_path / "out" / "curves").iterdir())
@@ -89,9 +89,9 @@ def test_published_column_and_cli(tmp_path, capsys):
                    "source: 'a test fixture'}\n")
     assert leaderboard.main([str(tmp_path / "results"), "--published", str(pub), "--no-plots"]) == 0
     out = capsys.readouterr().out
-    assert "| Hopper.run | perfect | lsiq | 3 | 110.00 ± 24.84 | 0.600 ± 0.248 | 0.9 (normalized) |" in out
-    assert "| Hopper.run | perfect | bc | 1 | 50.00 | 0.200 | n/a |" in out
-    assert "Hopper.run,perfect,lsiq,3,0 1 2,110.0000,24.8414,0.6000,0.2484,0.9 (normalized),a test fixture" in \
+    assert "| Hopper.run | perfect | lsiq | 1000 steps | 3 | 110.00 ± 24.84 | 0.600 ± 0.248 | 0.9 (normalized) |" in out
+    assert "| Hopper.run | perfect | bc | 1000 steps | 1 | 50.00 | 0.200 | n/a |" in out
+    assert "Hopper.run,perfect,lsiq,1000 steps,3,0 1 2,110.0000,24.8414,0.6000,0.2484,0.9 (normalized),a test fixture" in \
         (tmp_path / "results" / "leaderboard.csv").read_text()
     assert not (tmp_path / "results" / "curves").exists()
     # the shipped file loads (it is empty on purpose) and an empty folder is an error

@@ -1,15 +1,11 @@
 """End-to-end tests of `train.py` (Hydra app), resume, sweeps and `python -m loco_il.evaluation`.
 
-Every run is a subprocess on InvertedPendulum.balance.perfect with a tiny budget. The dataset comes from
-a stand-in expert written here (a linear state-feedback controller stored as an `ExpertPolicy` file that
-balances the pole for all 1000 steps) in a private `LOCO_IL_EXPERTS` folder, so the tests neither need
-nor use the shipped expert, and are deterministic. Datasets are cached in a private `LOCO_IL_DATASETS`.
+Every run is a subprocess on InvertedPendulum.balance.perfect with a tiny budget and a stand-in expert
+(tests/train_helpers.py).
 """
 from __future__ import annotations
 
-import csv
 import json
-import os
 import re
 import signal
 import subprocess
@@ -19,12 +15,8 @@ from pathlib import Path
 
 import pytest
 import torch
+from train_helpers import FAST, ROOT, TASK, csv_rows, make_env_vars, run_dir, train  # tests/ is on sys.path
 
-ROOT = Path(__file__).resolve().parents[2]
-TASK = "InvertedPendulum.balance.perfect"
-GAINS = [1.0, 10.0, 1.0, 1.0]      # obs = [cart pos, pole angle, cart vel, pole ang. vel]; force range [-3, 3]
-#: small, fast settings shared by every run: a 12-episode dataset pool (9 train / 3 held out), W&B off
-FAST = ["dataset.n_episodes=12", "eval=quick", "logger=csv", "hydra/job_logging=disabled"]
 #: a tiny GAIL: small networks, short on-policy batches
 TINY_GAIL = ["algo=gail", "algo.core.n_steps_per_fit=200", "algo.policy.hidden=[32,32]",
              "algo.params.disc_hidden=[32]", "algo.params.vf_hidden=[32]", "algo.params.disc_batch_size=200",
@@ -33,38 +25,7 @@ TINY_GAIL = ["algo=gail", "algo.core.n_steps_per_fit=200", "algo.policy.hidden=[
 
 @pytest.fixture(scope="module")
 def env_vars(tmp_path_factory) -> dict:
-    from loco_il.experts.policy import ExpertPolicy
-    root = tmp_path_factory.mktemp("experiment")
-    expert = ExpertPolicy(4, 1, hidden=(), metadata={"task_id": TASK, "note": "linear stand-in expert (tests)"})
-    with torch.no_grad():
-        expert.policy.net[0].weight.copy_(torch.tensor([GAINS]) / 3.0)
-        expert.policy.net[0].bias.zero_()
-    (root / "experts" / "InvertedPendulum.balance").mkdir(parents=True)
-    expert.save(root / "experts" / "InvertedPendulum.balance" / "expert.pt")
-    env = dict(os.environ, LOCO_IL_EXPERTS=str(root / "experts"), LOCO_IL_DATASETS=str(root / "datasets"),
-               WANDB_MODE="offline", WANDB_SILENT="true", MUJOCO_GL=os.environ.get("MUJOCO_GL", "egl"),
-               OMP_NUM_THREADS="1", PYTHONUNBUFFERED="1", HYDRA_FULL_ERROR="1")
-    env["_root"] = str(root)
-    return env
-
-
-def train(env: dict, results: Path, *overrides: str, check: bool = True, timeout: int = 300,
-          multirun: bool = False) -> subprocess.CompletedProcess:
-    cmd = [sys.executable, "train.py", *(["-m"] if multirun else []), f"results_dir={results}", *FAST, *overrides]
-    proc = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True, timeout=timeout)
-    if check and proc.returncode != 0:
-        raise AssertionError(f"{' '.join(cmd)} exited {proc.returncode}\nstdout:\n{proc.stdout[-3000:]}\n"
-                             f"stderr:\n{proc.stderr[-3000:]}")
-    return proc
-
-
-def run_dir(results: Path, name: str = "bc", seed: int = 0) -> Path:
-    return results / TASK / name / f"seed{seed}"
-
-
-def csv_rows(path: Path) -> list[dict]:
-    with open(path, newline="") as fh:
-        return list(csv.DictReader(fh))
+    return make_env_vars(tmp_path_factory.mktemp("experiment"))
 
 
 def test_end_to_end_train_evaluate_and_rerun(env_vars, tmp_path):
@@ -220,8 +181,11 @@ def test_checkpoints_kept_above_a_score_and_forked_from(env_vars, tmp_path):
     train(env_vars, results, *TINY_LSIQ, "n_steps=600", "eval.every=200", "checkpoint_every=600",
           "keep_checkpoints_above=-1e9")
     d = run_dir(results, "lsiq")
-    kept = sorted((d / "kept").iterdir(), key=lambda p: int(p.stem[4:]))
+    kept = sorted((d / "kept").glob("*.pt"), key=lambda p: int(p.stem[4:]))
     assert [p.name for p in kept] == ["step200.pt", "step400.pt", "step600.pt"]
+    # each with its checksum file, which a fork from it verifies
+    assert sorted(p.name for p in (d / "kept").iterdir()) == sorted([p.name for p in kept] +
+                                                                     [p.name + ".sha256" for p in kept])
     steps = [torch.load(p, map_location="cpu", weights_only=False)["counters"]["step"] for p in kept]
     assert steps == [200, 400, 600]
     scores = [float(r["normalized_score"]) for r in csv_rows(d / "log.csv")]
@@ -232,7 +196,7 @@ def test_checkpoints_kept_above_a_score_and_forked_from(env_vars, tmp_path):
     d_sel = run_dir(results, "lsiq_sel")
     assert [float(r["normalized_score"]) for r in csv_rows(d_sel / "log.csv")] == scores   # same seed, same run
     expected = sorted(f"step{200 * (i + 1)}.pt" for i, s in enumerate(scores) if s >= scores[1])
-    assert sorted(p.name for p in (d_sel / "kept").iterdir()) == expected
+    assert sorted(p.name for p in (d_sel / "kept").glob("*.pt")) == expected
     assert proc.stdout.count("checkpoint kept as") == len(expected)
 
     fork = train(env_vars, results, *TINY_LSIQ, "n_steps=400", "eval.every=200", "name=lsiq_fork200",

@@ -122,7 +122,7 @@ class ILAgent(Agent):
             raise ValueError(f"unknown dataset type {dataset_type!r}; expected one of {sorted(DATASET_TYPES)}")
         if dataset_type in cls.supported_datasets:
             return
-        able = [f"{c.pretty_name()} ('{n}')" for n, c in sorted(ALGORITHMS.items())
+        able = [f"{c.pretty_name()} (algo={n})" for n, c in sorted(ALGORITHMS.items())
                 if dataset_type in c.supported_datasets]
         hint = " (it has no expert actions)" if dataset_type == "real" else ""
         raise ValueError(f"{cls.pretty_name()} cannot learn from a '{dataset_type}' dataset{hint}; "

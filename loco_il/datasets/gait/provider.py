@@ -411,7 +411,7 @@ def quadruped_real_provider(env: Any, *, n_episodes: int | None = None, generati
     Returns ``(Trajectories, InitStates)``. Extra ``kwargs`` go to `quadruped_real_dataset`
     (e.g. ``episode_steps``, ``warmup``, ``speed_tolerance``).
     """
-    from loco_il.datasets.providers.expert import InitStates, init_states_path
+    from loco_il.datasets.providers.expert import InitStates, _regen_hint, init_states_path, save_to_cache
     allowed = {"episode_steps", "warmup", "params", "variation", "speed_tolerance", "direction_tolerance_deg",
                "max_attempts"}
     unknown = set(kwargs) - allowed
@@ -427,7 +427,7 @@ def quadruped_real_provider(env: Any, *, n_episodes: int | None = None, generati
     path = _cache_path(gen, n, generation_seed, fields)
     side = init_states_path(path)
     if not regenerate and path.exists() and side.exists():
-        hint = f"call create_dataset(env, regenerate=True) to rebuild it (or delete {path})"
+        hint = _regen_hint(path)
         data = Trajectories.load(path, regenerate_hint=hint,
                                  expect={"obs_names": list(gen.full_obs_spec.names), "dataset_type": "real",
                                          "act_dim": None})
@@ -445,9 +445,7 @@ def quadruped_real_provider(env: Any, *, n_episodes: int | None = None, generati
     info = dict(data.info)
     info["cache_fields"] = fields
     data = data.replace(info=info)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    init.save(side)
-    data.save(path)
+    save_to_cache(path, data, init)   # a cache that cannot be written only warns
     return data, init
 
 

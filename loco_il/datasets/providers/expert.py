@@ -45,7 +45,9 @@ them (so the recorded actions replay exactly); anything it draws at random comes
 ``<key>`` is the first 16 hex digits of the sha256 of the generation task, dataset type, policy
 checksum, number of episodes, seed, MuJoCo version and the generator version: any change gives a
 new file. Files are written atomically and validated on load; a corrupt file raises
-:class:`~loco_il.datasets.DatasetError` naming it, and ``regenerate=True`` rebuilds it.
+:class:`~loco_il.datasets.DatasetError` naming it, and ``regenerate=True`` rebuilds it (`train.py ...
+dataset.regenerate=true`). A cache folder that cannot be written is reported before the episodes are
+generated; they are then used without being cached (kept in memory for the process, `UNCACHED`).
 """
 from __future__ import annotations
 
@@ -533,9 +535,47 @@ def _safe(name: str) -> str:
     return "".join(c if c.isalnum() or c in "-_." else "_" for c in name)
 
 
+def cache_unwritable(folder: Path) -> str | None:
+    """None when `folder` can hold cache files (made if missing); else why not. Checked by writing a file, which
+    also catches read-only filesystems, before minutes of rollouts are spent on data that could not be kept."""
+    import tempfile
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=folder):
+            pass
+    except OSError as exc:
+        return exc.strerror or type(exc).__name__
+    return None
+
+
+#: generated datasets whose cache file could not be written, by that path: later calls of this process (the test
+#: split, the start-state sampler) use them instead of generating them again
+UNCACHED: dict[Path, tuple[Trajectories, "InitStates"]] = {}
+
+
+def warn_uncached(folder: Path, reason: str) -> None:
+    print(f"[loco_il.datasets] warning: cannot write the dataset cache {folder} ({reason}); the dataset is generated "
+          f"for this process only and again next time. Set LOCO_IL_DATASETS=<a writable folder> to cache it.",
+          file=sys.stderr, flush=True)
+
+
+def save_to_cache(path: Path, data: Trajectories, init: InitStates) -> bool:
+    """Write a generated dataset and its initial states (sidecar first: a dataset file on disk always has its
+    sidecar). A failed write only warns: the generated episodes are still returned to the caller."""
+    try:
+        init_path = init_states_path(path)
+        init.save(init_path)
+        data.save(path)
+        return True
+    except OSError as exc:
+        warn_uncached(path.parent, exc.strerror or str(exc))
+        UNCACHED[path] = (data, init)
+        return False
+
+
 def _regen_hint(path: Path) -> str:
-    return (f"call create_dataset(env, regenerate=True) to rebuild it (or delete {path} and its "
-            f".init_states.npz and call env.create_dataset() again)")
+    return (f"rebuild it with `python train.py ... dataset.regenerate=true` or create_dataset(env, regenerate=True) "
+            f"(or delete {path} and its .init_states.npz)")
 
 
 def verify_replay(env: Any, data: Trajectories, init: InitStates, episode: int = 0, atol: float = 1e-9) -> None:
@@ -575,6 +615,9 @@ def cached_rollouts(gen_env: Any, policy: Any, *, key: str, dataset_type: str, n
     path = datasets_cache_dir() / _safe(key) / f"{_safe(name)}-n{int(n_episodes)}-seed{int(seed)}-{hkey}.npz"
     side = init_states_path(path)
     nq, nv = int(gen_env.model.nq), int(gen_env.model.nv)
+    if not regenerate and path in UNCACHED:
+        data, init = UNCACHED[path]
+        return data, init, path
     if not regenerate and path.exists():
         hint = _regen_hint(path)
         data = Trajectories.load(path, regenerate_hint=hint,
@@ -584,6 +627,9 @@ def cached_rollouts(gen_env: Any, policy: Any, *, key: str, dataset_type: str, n
         init = InitStates.load(side, regenerate_hint=hint, n_episodes=data.n_trajectories, nq=nq, nv=nv)
         STATS["cache_hits"] += 1
         return data, init, path
+    unwritable = cache_unwritable(path.parent)
+    if unwritable:
+        warn_uncached(path.parent, unwritable)
     if log is not None:
         log(f"[loco_il.datasets] generating {name} dataset of {key}: {n_episodes} episodes, seed {seed} -> {path}")
     full_info = {
@@ -598,8 +644,10 @@ def cached_rollouts(gen_env: Any, policy: Any, *, key: str, dataset_type: str, n
     data, init = rollout(gen_env, policy, episode_seeds(seed, n_episodes), info=full_info, log=log,
                          label=f"{key} {name}", horizon=horizon, workers=workers)
     verify_replay(gen_env, data, init)
-    init.save(side)          # sidecar first: a dataset file on disk always has its sidecar
-    data.save(path)
+    if unwritable:
+        UNCACHED[path] = (data, init)
+    else:
+        save_to_cache(path, data, init)
     STATS["generated"] += 1
     return data, init, path
 
