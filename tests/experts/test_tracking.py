@@ -209,6 +209,7 @@ def test_tracking_expert_records_a_replayable_perfect_dataset(trained, tmp_path,
     env.stop()
 
 
+@pytest.mark.slow
 def test_train_py_imitates_a_tracking_expert_on_atlas(trained, tmp_path):
     """The mission's command on a robot: `train.py task=Atlas.walk.perfect algo=lsiq`, its `perfect` dataset
     generated from a tracking expert (here the tiny one above, installed through $LOCO_IL_EXPERTS)."""
