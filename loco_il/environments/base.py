@@ -32,6 +32,15 @@ _DIVERGENCE_WARNINGS = (int(mujoco.mjtWarning.mjWARN_BADQPOS), int(mujoco.mjtWar
 InitStateSampler = Callable[[np.random.Generator], tuple[np.ndarray, np.ndarray]]
 
 
+def action_map(model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray]:
+    """(centre, half-width) of each actuator's control range: an action a in [-1, 1] drives
+    ctrl = centre + a * half-width (an unlimited actuator takes [-1, 1] as its range)."""
+    limited = model.actuator_ctrllimited.astype(bool)
+    lo = np.where(limited, model.actuator_ctrlrange[:, 0], -1.0)
+    hi = np.where(limited, model.actuator_ctrlrange[:, 1], 1.0)
+    return (hi + lo) / 2, (hi - lo) / 2
+
+
 def name_unnamed_joints(spec: mujoco.MjSpec) -> None:
     """Give every unnamed joint a stable name (`<body>_root` for a free joint) so poses and
     observation entries can refer to it (Menagerie robots leave their free root joint unnamed)."""
@@ -234,10 +243,7 @@ class LocoEnv(Environment):
         self.n_substeps = max(1, int(round(self.body.control_dt / self.model.opt.timestep)))
         self.dt = self.n_substeps * self.model.opt.timestep
         self._layout = joint_layout(self.model, self.body.exclude_root_xy)
-        limited = self.model.actuator_ctrllimited.astype(bool)
-        lo = np.where(limited, self.model.actuator_ctrlrange[:, 0], -1.0)
-        hi = np.where(limited, self.model.actuator_ctrlrange[:, 1], 1.0)
-        self._ctrl_center, self._ctrl_half = (hi + lo) / 2, (hi - lo) / 2
+        self._ctrl_center, self._ctrl_half = action_map(self.model)
         self._init_qpos = self.model.qpos0.copy()
         for j in range(self.model.njnt):
             name = mujoco.mj_id2name(self.model, mujoco.mjtObj.mjOBJ_JOINT, j)

@@ -321,11 +321,9 @@ class TrotController:
 
     def normalized_ctrl(self) -> np.ndarray:
         """The current ``data.ctrl`` as the env's normalized action in [-1, 1] (for reward contexts)."""
-        m = self.model
-        limited = m.actuator_ctrllimited.astype(bool)
-        lo = np.where(limited, m.actuator_ctrlrange[:, 0], -1.0)
-        hi = np.where(limited, m.actuator_ctrlrange[:, 1], 1.0)
-        return np.clip((self.data.ctrl - (hi + lo) / 2) / ((hi - lo) / 2), -1.0, 1.0)
+        from loco_il.environments.base import action_map
+        center, half = action_map(self.model)
+        return np.clip((self.data.ctrl - center) / half, -1.0, 1.0)
 
 
 __all__ = ["ControllerParams", "TrotController", "wrap_angle"]

@@ -54,6 +54,7 @@ import mujoco
 import numpy as np
 
 from loco_il.datasets.gait.controller import ControllerParams, TrotController
+from loco_il.environments.base import action_map
 from loco_il.datasets.gait.provider import GaitVariation, _goal_speed, _jsonable, _model_fingerprint, is_quadruped
 
 #: bump when the expert's actions change for the same parameters (invalidates cached datasets)
@@ -140,10 +141,7 @@ class TrotExpert:
             ctl.reset(direction, rng=rng, phase_jitter=jitter)
         self._ctl = ctl
         self._noise_rng = np.random.default_rng(np.random.SeedSequence(int(seed), spawn_key=(0x7e0,)))
-        limited = model.actuator_ctrllimited.astype(bool)
-        lo = np.where(limited, model.actuator_ctrlrange[:, 0], -1.0)
-        hi = np.where(limited, model.actuator_ctrlrange[:, 1], 1.0)
-        self._center, self._half = (hi + lo) / 2, (hi - lo) / 2
+        self._center, self._half = action_map(model)
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
         if self._ctl is None:

@@ -21,6 +21,7 @@ from typing import Any, Mapping
 import mujoco
 import numpy as np
 
+from loco_il.environments.base import action_map
 from loco_il.experts.tracking.reference import ReferenceMotion
 from loco_il.experts.tracking.settings import TrackingSettings
 
@@ -32,14 +33,6 @@ def servo_mask(model: mujoco.MjModel) -> np.ndarray:
     affine = model.actuator_biastype == mujoco.mjtBias.mjBIAS_AFFINE
     kp = model.actuator_gainprm[:, 0]
     return affine & np.isclose(model.actuator_biasprm[:, 1], -kp) & (kp > 0)
-
-
-def ctrl_center_half(model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray]:
-    """Centre and half-width of each actuator's control range (LocoEnv's linear action map)."""
-    limited = model.actuator_ctrllimited.astype(bool)
-    lo = np.where(limited, model.actuator_ctrlrange[:, 0], -1.0)
-    hi = np.where(limited, model.actuator_ctrlrange[:, 1], 1.0)
-    return (hi + lo) / 2, (hi - lo) / 2
 
 
 def full_mass_matrix(model: mujoco.MjModel, data: mujoco.MjData, out: np.ndarray | None = None) -> np.ndarray:
@@ -57,7 +50,7 @@ def pd_gains(model: mujoco.MjModel, reference: ReferenceMotion, settings: Tracki
 
     kp = peak torque / kp_angle; kd = damping_ratio * 2 sqrt(kp I), I the joint's diagonal entry of the mass
     matrix at the reference's first pose (its own inertia with the others locked)."""
-    center, half = ctrl_center_half(model)
+    center, half = action_map(model)
     peak = (np.abs(center) + half) * np.abs(model.actuator_gear[:, 0])
     data = mujoco.MjData(model)
     data.qpos[:] = reference.qpos[0]
@@ -113,7 +106,7 @@ class TrackingController:
     def for_model(cls, model: mujoco.MjModel, reference: ReferenceMotion, settings: TrackingSettings,
                   control_dt: float) -> "TrackingController":
         kp, kd = pd_gains(model, reference, settings)
-        center, half = ctrl_center_half(model)
+        center, half = action_map(model)
         return cls(reference, settings, float(control_dt), kp, kd, model.actuator_gear[:, 0].copy(), center, half,
                    servo_mask(model))
 
