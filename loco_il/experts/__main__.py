@@ -92,6 +92,8 @@ def eval_main(cfg: DictConfig) -> None:
     from loco_il.experts.policy import load_expert
     from loco_il.experts.vec import evaluate_episodes, make_vec_env
     root = Path(cfg.path)
+    if not root.exists():
+        raise SystemExit(f"path={root}: no such expert file or folder")
     paths = sorted(root.glob("*.pt")) if root.is_dir() else [root]
     if not paths:
         raise SystemExit(f"no expert files (*.pt) in {root}")
