@@ -6,6 +6,7 @@
 #                                                                      # runs/ has none, then train in background
 #   bash benchmarks/tracking_runs.sh save Atlas.walk UnitreeH1.walk     # copy runs/ -> benchmarks/expert_runs/
 #   bash benchmarks/tracking_runs.sh status                             # last progress line of every run
+#   EXTRA="tracking.rsi_fraction=0.3" bash benchmarks/tracking_runs.sh resume Atlas.walk   # more overrides
 #
 # A run is `python -m loco_il.experts train task=<Task> algo=tracking` into runs/tracking/<Task>/seed$SEED with
 # 8 envs in one process (one core per run: on a 2-core machine two runs side by side; with more cores use
@@ -35,7 +36,7 @@ case "$verb" in
       fi
       mkdir -p "$run"
       nohup "$PYTHON" -m loco_il.experts train task="$task" algo=tracking seed="$SEED" total_steps="$TOTAL" \
-        num_envs="$NUM_ENVS" async="$ASYNC" out_dir="$run" checkpoint_minutes=4 log_interval_s=60 \
+        num_envs="$NUM_ENVS" async="$ASYNC" out_dir="$run" checkpoint_minutes=4 log_interval_s=60 ${EXTRA:-} \
         >> "$run/train.log" 2>&1 &
       echo "$task: training in the background (pid $!), log $run/train.log"
     done ;;

@@ -235,3 +235,14 @@ def test_train_py_imitates_a_tracking_expert_on_atlas(trained, tmp_path):
     final = json.loads((run / "eval.json").read_text())
     assert final["steps"] == 300 and final["task_id"] == "Atlas.walk.perfect"
     assert list((tmp_path / "datasets" / "Atlas.walk").glob("perfect-n2-*.npz"))
+
+
+def test_the_config_file_lists_every_tracking_option_at_its_default():
+    """`tracking.<name>=<value>` on the command line needs the key in the config (Hydra's struct mode)."""
+    import dataclasses
+    from pathlib import Path
+
+    import yaml
+    path = Path(__file__).resolve().parents[2] / "loco_il" / "experts" / "configs" / "algo" / "tracking.yaml"
+    listed = yaml.safe_load(path.read_text())["tracking"]
+    assert listed == {f.name: f.default for f in dataclasses.fields(TrackingSettings)}
