@@ -158,7 +158,12 @@ def _evaluate_env_expert(expert: Any, path: Path, task: str, episodes: int, seed
     parts = [evaluate(task, expert, n, seed, details=True, env_kwargs=kwargs)
              for n, kwargs in ((n_env, {}), (episodes - n_env, {"init_state_sampler": sampler and sampler()}))
              if n > 0]
-    res = {k: sum((p[k] for p in parts), []) for k in ("returns", "lengths", "terminated", "forward_speed")}
+    keys = ("returns", "lengths", "terminated", "forward_speed")
+    res = {k: sum((p[k] for p in parts), []) for k in keys}
+    # the bar's two kinds of start separately: a walker can track from reference states and still fall from standing
+    by_start = {name: _start_summary(p) for name, p in zip(("env_starts", "reference_starts"), parts) if p}
+    if starts == "reference":
+        by_start = {"reference_starts": by_start.pop("env_starts")}
     probe = make(task)
     target = getattr(probe.task.reward, "target", None)
     probe.stop()
@@ -169,9 +174,17 @@ def _evaluate_env_expert(expert: Any, path: Path, task: str, episodes: int, seed
             "return_min": round(float(returns.min()), 2), "length_mean": round(float(np.mean(res["lengths"])), 1),
             "terminated": int(np.sum(res["terminated"])), "forward_speed_mean": round(float(speeds.mean()), 3),
             "forward_speed_std": round(float(speeds.std()), 3), "target_speed": target,
-            "returns": [round(float(r), 2) for r in returns],
+            **by_start, "returns": [round(float(r), 2) for r in returns],
             "training_steps": expert.metadata.get("training_steps"),
             "stored_eval_return": expert.metadata.get("eval_return"), "checksum": expert.checksum()}
+
+
+def _start_summary(part: dict[str, Any]) -> dict[str, Any]:
+    """Episodes, mean return, falls and mean forward speed of one kind of start."""
+    import numpy as np
+    return {"episodes": len(part["returns"]), "return_mean": round(float(np.mean(part["returns"])), 2),
+            "terminated": int(np.sum(part["terminated"])),
+            "forward_speed_mean": round(float(np.mean(part["forward_speed"])), 3)}
 
 
 def slim_main(argv: list[str]) -> None:

@@ -139,6 +139,40 @@ def test_stable_pd_follows_the_reference_better_than_no_control(env, reference):
     tenv.close()
 
 
+def test_clock_ramp_starts_the_reference_at_the_bodys_own_speed(env, reference):
+    """From standing the phase clock starts near rate 0 and reaches full rate after clock_ramp_time; from a
+    reference state it runs at full rate at once; clock_ramp_time=0 keeps the full rate from the start."""
+    steps = int(round(1.0 / env.dt))
+    advance = {}
+    for ramp in (0.0, 1.0):
+        controller = TrackingController.for_model(env.model, reference, TrackingSettings(clock_ramp_time=ramp), env.dt)
+        env.seed(0)
+        env.reset()
+        controller.start(0.0, env.data)
+        rates = []
+        for _ in range(steps + 5):
+            controller.env_action(np.zeros(env.model.nu), env.model, env.data)
+            rates.append(controller.rate)
+        advance[ramp] = controller.phase
+        if ramp == 0.0:
+            assert rates == [1.0] * len(rates)
+        else:
+            assert rates[0] < 0.05 and np.all(np.diff(rates) >= 0) and rates[steps - 1] == 1.0
+        q, v = reference.state(0.3)
+        env.reset(np.concatenate([q, v]))
+        controller.start(0.3, env.data)
+        assert controller.rate > 0.5                               # on the reference: (nearly) full speed
+    assert advance[0.0] == pytest.approx((steps + 5) * env.dt / reference.period)
+    assert advance[1.0] < advance[0.0] - 0.4 * env.dt * steps / reference.period   # ~half a second of phase lost
+
+
+def test_clock_ramp_enters_the_checksum_only_when_used(env, reference):
+    digests = [TrackingController.for_model(env.model, reference, TrackingSettings(clock_ramp_time=t), env.dt)
+               .digest_bytes() for t in (0.0, 0.0, 1.0)]
+    assert digests[0] == digests[1] != digests[2]
+    assert "clock_ramp_time" not in dict(TrackingSettings().digest_items())
+
+
 @pytest.fixture(scope="module")
 def trained(tmp_path_factory):
     """A tiny tracking run (2 iterations): files, resume and the shipped expert's format."""
@@ -168,6 +202,29 @@ def test_trainer_writes_tracking_experts_and_resumes(trained):
     assert resumed.step == 1024 and resumed.controller.settings.rsi_fraction == 0.5
     np.testing.assert_array_equal(resumed.controller.reference.qpos, best.controller.reference.qpos)
     assert resumed.train()["env_steps"] == 1536
+
+
+def test_a_run_can_start_from_another_runs_networks_with_other_expert_settings(trained, tmp_path):
+    import torch
+    from loco_il.experts.tracking.trainer import TrackingTrainer
+    out, cfg, _ = trained
+    fresh = dict(cfg, out_dir=str(tmp_path / "warm"), init_from=str(out / "checkpoint.pt"),
+                 tracking={"clock_ramp_time": 1.0})
+    warm = TrackingTrainer(fresh)
+    source = torch.load(out / "checkpoint.pt", weights_only=True)["agent"]
+    state = warm.learner_state()
+    assert warm.step == 0 and warm.controller.settings.clock_ramp_time == 1.0
+    for part in ("policy", "value", "obs_rms"):
+        assert source[part].keys() == state[part].keys() and len(source[part]) > 0
+        for name, value in source[part].items():
+            assert np.array_equal(np.asarray(state[part][name]), np.asarray(value)), (part, name)
+    cold = TrackingTrainer(dict(cfg, out_dir=str(tmp_path / "cold"))).learner_state()     # same seed, no init_from
+    assert not np.array_equal(np.asarray(state["policy"]["net.0.weight"]), np.asarray(cold["policy"]["net.0.weight"]))
+    assert warm.metadata(None)["init_from"] == str(out / "checkpoint.pt")
+    with pytest.raises(ValueError, match="no such file"):
+        TrackingTrainer(dict(fresh, out_dir=str(tmp_path / "bad"), init_from=str(tmp_path / "missing.pt")))
+    with pytest.raises(ValueError, match="hidden"):
+        TrackingTrainer(dict(fresh, out_dir=str(tmp_path / "bad2"), hidden=[16, 16]))
 
 
 def test_tracking_expert_file_round_trip_and_env_level_use(trained, tmp_path):

@@ -101,6 +101,7 @@ class TrackingController:
     half: np.ndarray
     servo: np.ndarray
     phase: float = 0.0
+    rate: float = 1.0           # phase clock speed relative to the reference's (see `start`)
 
     @classmethod
     def for_model(cls, model: mujoco.MjModel, reference: ReferenceMotion, settings: TrackingSettings,
@@ -118,9 +119,15 @@ class TrackingController:
         """Start the clock at `phase` in the state `data`: the PD targets begin at the start pose and velocities and
         blend into the reference over `ramp_time` seconds (a smoothstep of the start's offset from the reference,
         nothing when the episode starts on the reference; ours: from standing, full reference targets at once
-        topple the robot within 0.2 s)."""
+        topple the robot within 0.2 s). With `clock_ramp_time` > 0 the clock itself starts at the start state's
+        forward speed relative to the reference's (0 from standing, ~1 on the reference) and reaches full rate
+        over `clock_ramp_time` seconds, so the reference accelerates with the body instead of running away."""
         self.phase = float(phase)
         self._elapsed = 0.0
+        # the root's first dof is its forward (x) slide (LocoMuJoCo) or the free joint's world x velocity
+        speed_ratio = float(data.qvel[0]) / max(self.reference.speed, 1e-6)
+        self._rate0 = 1.0 if self.settings.clock_ramp_time <= 0 else float(np.clip(speed_ratio, 0.0, 1.0))
+        self.rate = self._rate0
         q_ref, dq_ref = self.reference.targets(self.phase)
         ref = self.reference
         self._q_offset = data.qpos[ref.actuated_qpos] - q_ref
@@ -133,8 +140,11 @@ class TrackingController:
     def env_action(self, policy_action: np.ndarray, model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
         """The env action for this step (targets at the end of the step); then advances the phase."""
         ref = self.reference
-        q_ref, dq_ref = ref.targets(self.phase + self.phase_step)
         self._elapsed += self.control_dt
+        self.rate = _smoothstep_from(self._rate0, self._elapsed, self.settings.clock_ramp_time)
+        phase_step = self.rate * self.phase_step
+        q_ref, dq_ref = ref.targets(self.phase + phase_step)
+        dq_ref = self.rate * dq_ref
         ramp = self.settings.ramp_time
         if ramp > 0 and self._elapsed < ramp:
             x = self._elapsed / ramp
@@ -144,7 +154,7 @@ class TrackingController:
         tau = stable_pd_torques(model, data, ref.actuated_qvel, self.kp, self.kd, target, dq_ref,
                                 data.qpos[ref.actuated_qpos], self.control_dt)
         ctrl = np.where(self.servo, target, tau / np.where(self.gear == 0, 1.0, self.gear))
-        self.phase += self.phase_step
+        self.phase += phase_step
         return np.clip((ctrl - self.center) / self.half, -1.0, 1.0)
 
     # ------------------------------------------------------------------ (de)serialization
@@ -164,6 +174,14 @@ class TrackingController:
 
     def digest_bytes(self) -> bytes:
         parts = [np.ascontiguousarray(getattr(self, k)).tobytes() for k in self.ARRAYS]
-        expert_settings = [(k, getattr(self.settings, k)) for k in self.settings.EXPERT_FIELDS]
-        parts += [self.reference.digest_bytes(), repr(expert_settings).encode(), repr(self.control_dt).encode()]
+        parts += [self.reference.digest_bytes(), repr(self.settings.digest_items()).encode(),
+                  repr(self.control_dt).encode()]
         return b"".join(parts)
+
+
+def _smoothstep_from(start: float, elapsed: float, duration: float) -> float:
+    """`start` rising smoothly to 1 over `duration` seconds (1 at once when duration <= 0)."""
+    if duration <= 0 or elapsed >= duration:
+        return 1.0
+    x = elapsed / duration
+    return start + (1.0 - start) * x * x * (3.0 - 2.0 * x)

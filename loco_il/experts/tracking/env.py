@@ -77,7 +77,8 @@ class TrackingEnv(gym.Env):
             if info.get("diverged"):
                 reward = 0.0
             else:
-                tracking, terms = self.reward(env.data, self.controller.phase, self._anchor)
+                tracking, terms = self.reward(env.data, self.controller.phase, self._anchor,
+                                              self.controller.rate)
                 reward = tracking + self.settings.w_task * reward
                 terminated = terminated or terms["root_error"] > self.settings.max_root_error
         truncated = not terminated and self._t >= self._horizon

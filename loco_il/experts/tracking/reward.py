@@ -23,7 +23,8 @@ from loco_il.experts.tracking.settings import TrackingSettings
 
 
 class TrackingReward:
-    """`reward(data, phase, anchor) -> (reward, terms)` for one compiled model (see the module docstring)."""
+    """`reward(data, phase, anchor, rate) -> (reward, terms)` for one compiled model (see the module docstring);
+    `rate` is the phase clock's speed (`TrackingController.rate`), which scales the reference velocities."""
 
     def __init__(self, model: mujoco.MjModel, reference: ReferenceMotion, settings: TrackingSettings):
         self.reference, self.settings = reference, settings
@@ -31,9 +32,11 @@ class TrackingReward:
         self.ee_ids = _body_ids(model, reference.ee_bodies)
         self._orientation_error = np.zeros(3)
 
-    def __call__(self, data: mujoco.MjData, phase: float, anchor: np.ndarray) -> tuple[float, dict[str, float]]:
+    def __call__(self, data: mujoco.MjData, phase: float, anchor: np.ndarray,
+                 rate: float = 1.0) -> tuple[float, dict[str, float]]:
         ref, s = self.reference, self.settings
         q_ref, dq_ref = ref.targets(phase)
+        dq_ref = rate * dq_ref
         root_ref, quat_ref, ee_ref = ref.kinematics(phase)
         root_ref[:2] += anchor
         mujoco.mju_subQuat(self._orientation_error, data.xquat[self.root], quat_ref)

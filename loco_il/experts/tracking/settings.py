@@ -39,10 +39,21 @@ class TrackingSettings:
     #                              zero-action tracking on Atlas from RSI lasts ~1.0 s with 0.25, ~0.6 s with 0.5)
     damping_ratio: float = 1.0   # kd = ratio * 2 sqrt(kp * I), I the joint's own inertia at the reference pose
     ramp_time: float = 0.5       # s over which PD targets blend from the start state into the reference (ours)
+    clock_ramp_time: float = 0.0  # s over which the phase clock speeds up from the start's own forward speed to
+    #                              the reference's (ours; 0: full rate at once, so from standing the reference runs
+    #                              off at full speed and a body that cannot keep up hits max_root_error)
     target_speed: float | None = None   # time-scale the reference to this speed (None: the task's target)
 
     #: what the shipped expert's actions depend on (fixed for a run); the other fields only shape training
-    EXPERT_FIELDS = ("action_scale", "kp_angle", "damping_ratio", "ramp_time", "target_speed")
+    EXPERT_FIELDS = ("action_scale", "kp_angle", "damping_ratio", "ramp_time", "target_speed", "clock_ramp_time")
+    #: expert fields that enter an expert's checksum only when they differ from these values (fields added after
+    #: experts were trained: their files keep their checksums)
+    DIGEST_DEFAULTS = {"clock_ramp_time": 0.0}
+
+    def digest_items(self) -> list[tuple[str, Any]]:
+        """(name, value) of the expert fields that identify an expert (part of its checksum)."""
+        return [(k, getattr(self, k)) for k in self.EXPERT_FIELDS
+                if k not in self.DIGEST_DEFAULTS or getattr(self, k) != self.DIGEST_DEFAULTS[k]]
 
     def for_resume(self, current: "TrackingSettings") -> "TrackingSettings":
         """These (a checkpoint's) settings with `current`'s training-only fields (reward, start states, early

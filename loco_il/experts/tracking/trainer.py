@@ -17,9 +17,11 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, Callable, Mapping
 
 import numpy as np
+import torch
 
 from loco_il.experts.ppo import PPOTrainer, TrainConfig
 from loco_il.experts.tracking.controller import PHASE_FEATURES, TrackingController
@@ -35,6 +37,10 @@ class TrackingConfig(TrainConfig):
 
     algo: str = "tracking"
     tracking: Mapping[str, Any] = field(default_factory=dict)
+    # a new run may start from another tracking run's networks, optimizers and normalizers (`checkpoint.pt` of
+    # the same task and network shapes) while its expert settings differ (e.g. clock_ramp_time): the learned
+    # tracking carries over; the steps count from 0 and the file is named in every expert's metadata
+    init_from: str | None = None
 
     def to_dict(self) -> dict[str, Any]:
         d = super().to_dict()
@@ -66,6 +72,23 @@ class TrackingTrainer(PPOTrainer):
             env.stop()
         self.obs_dim += PHASE_FEATURES
         super().build()
+        if self.cfg.init_from and not self.ckpt_path.exists():
+            self._init_networks_from(Path(self.cfg.init_from))
+
+    def _init_networks_from(self, path: Path) -> None:
+        if not path.is_file():
+            raise ValueError(f"init_from={path}: no such file; give a tracking run's checkpoint.pt")
+        data = torch.load(path, map_location="cpu", weights_only=True)
+        if data.get("algo") != "tracking" or data.get("task_id") != self.task_id:
+            raise ValueError(f"init_from={path} is a {data.get('algo')} run of {data.get('task_id')}, not a tracking "
+                             f"run of {self.task_id}")
+        for key in self.cfg.RESUME_FIXED:
+            if data["config"].get(key) != self.cfg.to_dict()[key]:
+                raise ValueError(f"init_from={path}: its {key} is {data['config'].get(key)!r}, this run's "
+                                 f"{self.cfg.to_dict()[key]!r}")
+        agent = {k: v for k, v in data["agent"].items() if k != "controller"}
+        super().load_learner_state(agent)
+        self.log(f"[tracking] networks and normalizers from {path} (its step {data['step']})")
 
     def describe(self) -> str:
         ref = self.controller.reference
@@ -82,6 +105,12 @@ class TrackingTrainer(PPOTrainer):
         controller.settings = controller.settings.for_resume(TrackingSettings.from_mapping(self.cfg.tracking))
         self.controller = controller
         super().load_learner_state(state)
+
+    def metadata(self, ev: Mapping[str, Any] | None) -> dict[str, Any]:
+        out = super().metadata(ev)
+        if self.cfg.init_from:
+            out["init_from"] = str(self.cfg.init_from)
+        return out
 
     def make_envs(self, num_envs: int, purpose: str):
         factory = functools.partial(make_tracking_env, controller_state=self.controller.to_dict(), mode=purpose)
