@@ -60,6 +60,7 @@ case "$verb" in
     for task in "$@"; do
       run=$(run_dir "$task"); mkdir -p "$run/eval100"
       for policy in "$run"/evals/step_*.pt; do
+        [ -f "$policy" ] || continue                     # none kept yet
         result="$run/eval100/$(basename "$policy" .pt).json"
         step=$(basename "$policy" .pt); step=$((10#${step#step_}))
         [ -f "$result" ] || [ "$step" -lt "${FROM:-0}" ] && continue
