@@ -10,8 +10,8 @@ this module on first use of a `real` dataset).  For the env's task it
    wanted length, and retargets each to the robot (:func:`~loco_il.motion.mocap.retarget.retarget_clip`,
    keypoint map from :mod:`~loco_il.motion.mocap.robot_maps`);
 3. turns each clip into one episode of full observations (:func:`result_to_trajectories`:
-   ``env.set_sim_state`` on the robot's ``qpos``/``qvel``), no actions, **zero rewards** (motion capture has none), absorbing False,
-   ``last`` at the clip's end; ``info`` holds the sources with their licences, the retargeting
+   ``env.set_sim_state`` on the robot's ``qpos``/``qvel``), no actions, rewards of the task evaluated on the
+   motion (with a zero action: motion capture has none), absorbing False, ``last`` at the clip's end; ``info`` holds the sources with their licences, the retargeting
    quality metrics (per episode and overall) and the usual keys;
 4. caches the result like the expert datasets: ``$LOCO_IL_DATASETS`` (or
    ``~/.cache/loco_il/datasets``) ``/<Body>.<task>/real-<key>.npz`` plus the initial states of the

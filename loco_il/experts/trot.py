@@ -12,8 +12,8 @@ the controls once (`TrotController.held_ctrl`):
 * position servos (Menagerie's Go1): the end-of-step joint targets plus the feed-forward / damping
   offset, normalized to the servos' control range (the action is the normalized target).
 
-This differs from the `real` provider (`loco_il.datasets.gait`), which runs the PD at the physics rate (its per-substep
-torques are no env action). Measured (10 episodes of ``simple``, 1000 steps, seeds
+This differs from the `real` provider (`loco_il.datasets.gait`), which runs the PD at the physics
+rate (its per-substep torques are no env action). Measured (10 episodes of ``simple``, 1000 steps, seeds
 ``episode_seeds(0, 10)``, mean velocity after the first second): A1 0 falls, 0.502 m/s, return
 748.8 +- 30.2; Go1 0 falls, 0.502 m/s, return 751.6 +- 22.0 (the speed ramp from standing over the
 first 0.5 s and the trot's velocity oscillation keep the reward ``exp(-5 |v - v_cmd|)`` below 1).
@@ -26,9 +26,9 @@ internal state (oscillator phases, foot targets, velocity integral): the action 
 function of the episode's states so far, not of the current observation alone.
 
 Per-episode variation: as in the `real` data, a generator seeded with the episode's reset seed draws
-the episode's gait (`loco_il.motion.gait.GaitVariation`: frequency, swing height, body height, stance width,
-initial phase jitter), so the episodes of a dataset differ although ``simple`` always starts from the
-same state.
+the episode's gait (`loco_il.motion.gait.GaitVariation`: frequency, swing height, body height,
+stance width, initial phase jitter), so the episodes of a dataset differ although ``simple`` always
+starts from the same state.
 
 It registers as the built-in expert of `TROT_EXPERT_TASKS` (`loco_il.experts.registry`).
 

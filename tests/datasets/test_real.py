@@ -11,7 +11,7 @@ from loco_il.datasets.providers import ProviderUnavailableError
 from loco_il.datasets.real import real_provider, result_to_trajectories
 from loco_il.motion.mocap.clips import MotionFilesMissingError
 from loco_il.motion.mocap.retarget import retarget_clip
-from retarget_helpers import KEYPOINT_BOUND, PENETRATION_BOUND, cached_env, synthetic_walk
+from retarget_common import KEYPOINT_BOUND, PENETRATION_BOUND, cached_env, synthetic_walk
 
 
 def test_dataset_from_retargeted_clip_validates_and_round_trips(tmp_path):

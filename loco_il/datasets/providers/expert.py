@@ -68,6 +68,7 @@ Policy = Callable[[np.ndarray], np.ndarray]
 
 
 def _check_policy(policy: Any, key: str, obs_dim: int, act_dim: int, where: str) -> None:
+    """Refuse an expert made for other observation or action sizes, or trained on another task."""
     meta = getattr(policy, "metadata", None) or {}
     p_obs, p_act = getattr(policy, "obs_dim", None), getattr(policy, "act_dim", None)
     if p_obs is not None and int(p_obs) != obs_dim:
@@ -86,6 +87,7 @@ def _check_policy(policy: Any, key: str, obs_dim: int, act_dim: int, where: str)
 
 
 def _expert_meta(policy: Any) -> dict[str, Any]:
+    """The expert's metadata worth recording in the dataset's ``info``."""
     meta = getattr(policy, "metadata", None) or {}
     keep = ("task_id", "training_steps", "eval_return", "eval_return_std", "commit", "algorithm", "created",
             "source", "controller_version", "action_noise")
@@ -106,7 +108,7 @@ def _log_default(msg: str) -> None:
 
 
 def start_episode(policy: Any, env: Any, seed: int) -> None:
-    """Call the policy's optional ``start_episode(env, seed)`` hook (see the module docstring)."""
+    """Call the policy's optional ``start_episode(env, seed)`` hook (the policy interface: `loco_il.experts.files`)."""
     hook = getattr(policy, "start_episode", None)
     if callable(hook):
         hook(env, int(seed))

@@ -24,7 +24,7 @@ from loco_il.motion.mocap.retarget import (
     retarget_robot_to_robot,
 )
 from loco_il.motion.mocap.robot_maps import ROBOT_MAPS, get_robot_map, parse_point
-from retarget_helpers import KEYPOINT_BOUND, PENETRATION_BOUND, cached_env, synthetic_walk
+from retarget_common import KEYPOINT_BOUND, PENETRATION_BOUND, cached_env, synthetic_walk
 
 WALK = PACKAGED_MOCAP / "deepmimic" / "humanoid3d_walk.txt"
 
