@@ -34,10 +34,10 @@ def main(argv: list[str] | None = None) -> int:
 
     import torch
     torch.set_num_threads(1)
-    from loco_il.datasets.providers.expert import (episode_seeds, generation_env, load_policy, rollout,
-                                                   task_key)
     from loco_il.datasets.providers import rollout_workers
-    from loco_il.environments.registry import make
+    from loco_il.datasets.providers.expert import episode_seeds, generation_env, rollout
+    from loco_il.environments.registry import make, task_key
+    from loco_il.experts.files import load_policy
 
     env = make(args.task)
     key = task_key(env)

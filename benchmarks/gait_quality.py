@@ -8,7 +8,7 @@ import argparse
 import time
 
 from loco_il import LocoEnv
-from loco_il.datasets.gait.provider import generate_episodes
+from loco_il.datasets.gait import generate_episodes
 
 
 def main() -> None:

@@ -5,8 +5,8 @@ Usage::
     python benchmarks/retarget_quality.py [--robots UnitreeH1 G1 ...] [--tasks walk run]
     python benchmarks/retarget_quality.py --figure UnitreeH1 --task walk --frame 60   # docs/retarget_<robot>.png
 
-For each robot with a keypoint map (loco_il/datasets/mocap/robot_maps.py) and each task, the task's
-clips (``loco_il.datasets.real.TASK_CLIPS``: walk = DeepMimic walk repeated to 10 s + CMU 131_01/02,
+For each robot with a keypoint map (loco_il/motion/mocap/robot_maps.py) and each task, the task's
+clips (``loco_il.motion.mocap.clips.TASK_CLIPS``: walk = DeepMimic walk repeated to 10 s + CMU 131_01/02,
 run = DeepMimic run + jog, each repeated to 10 s) are retargeted at the robot's control rate with the
 default options, without the dataset cache, and one line is printed:
 
@@ -40,9 +40,10 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from loco_il import LocoEnv  # noqa: E402
-from loco_il.datasets.mocap.retarget import RobotKinematics, result_to_trajectories, retarget_clip  # noqa: E402
-from loco_il.datasets.mocap.robot_maps import ROBOT_MAPS  # noqa: E402
-from loco_il.datasets.real import TASK_CLIPS, find_motion_files, load_motion  # noqa: E402
+from loco_il.datasets.real import result_to_trajectories  # noqa: E402
+from loco_il.motion.mocap.clips import TASK_CLIPS, find_motion_files, load_motion  # noqa: E402
+from loco_il.motion.mocap.retarget import RobotKinematics, retarget_clip  # noqa: E402
+from loco_il.motion.mocap.robot_maps import ROBOT_MAPS  # noqa: E402
 
 BONES = [("l_hip", "r_hip"), ("l_hip", "l_knee"), ("l_knee", "l_ankle"), ("l_ankle", "l_toe"),
          ("r_hip", "r_knee"), ("r_knee", "r_ankle"), ("r_ankle", "r_toe"), ("hip_center", "torso"),

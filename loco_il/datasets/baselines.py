@@ -47,7 +47,7 @@ class BaselineMissingError(KeyError):
 
 
 def _key(task_id: str) -> str:
-    from loco_il.datasets.providers.expert import task_key
+    from loco_il.environments.registry import task_key
     return task_key(task_id)
 
 
@@ -190,7 +190,8 @@ def update_baseline(task_id: str, *, episodes: int = 10, seed: int = 0, random: 
                            "policy": "uniform random actions in [-1, 1] (numpy default_rng(seed))",
                            **_provenance(command)}
     if expert:
-        from loco_il.datasets.providers.expert import NoExpertError, builtin_expert, find_expert, load_policy
+        from loco_il.experts.files import NoExpertError, find_expert, load_policy
+        from loco_il.experts.registry import builtin_expert
         try:
             path_e: Path | None = find_expert(key)
         except NoExpertError:

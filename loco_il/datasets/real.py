@@ -3,27 +3,23 @@
 ``LocoEnv.make("UnitreeH1.walk.real").create_dataset()`` lands here (the provider registry imports
 this module on first use of a `real` dataset).  For the env's task it
 
-1. finds the task's motion files (:data:`TASK_CLIPS`; ``clips=[...]`` overrides) in the first folder
-   that has them all of ``$LOCO_IL_MOCAP`` (if set), the clips shipped in the package
-   (:data:`PACKAGED_MOCAP`) and ``~/.cache/loco_il/mocap`` -- a file is looked up by its relative path
-   (``deepmimic/...``, ``cmu_bvh/...``) and then by its bare name;
+1. finds the task's motion files (`loco_il.motion.mocap.clips`: the task's ``TASK_CLIPS``, or
+   ``clips=[...]``) in ``$LOCO_IL_MOCAP`` (if set), the clips shipped in the package or
+   ``~/.cache/loco_il/mocap``;
 2. loads them (DeepMimic ``.txt`` or BVH ``.bvh``), trims them, repeats cyclic clips to the
-   wanted length, and retargets each to the robot (:func:`~loco_il.datasets.mocap.retarget.retarget_clip`,
-   keypoint map from :mod:`~loco_il.datasets.mocap.robot_maps`);
-3. turns each clip into one episode of full observations (``env.set_sim_state`` on the robot's
-   ``qpos``/``qvel``), no actions, **zero rewards** (motion capture has none), absorbing False,
-   ``last`` at the clip's end; ``info`` holds the sources with their licences, the retargeting
+   wanted length, and retargets each to the robot (:func:`~loco_il.motion.mocap.retarget.retarget_clip`,
+   keypoint map from :mod:`~loco_il.motion.mocap.robot_maps`);
+3. turns each clip into one episode of full observations (:func:`result_to_trajectories`:
+   ``env.set_sim_state`` on the robot's ``qpos``/``qvel``), no actions, rewards of the task evaluated on the
+   motion (with a zero action: motion capture has none), absorbing False, ``last`` at the clip's end; ``info`` holds the sources with their licences, the retargeting
    quality metrics (per episode and overall) and the usual keys;
 4. caches the result like the expert datasets: ``$LOCO_IL_DATASETS`` (or
    ``~/.cache/loco_il/datasets``) ``/<Body>.<task>/real-<key>.npz`` plus the initial states of the
    episodes (``.init_states.npz``); the key hashes the motion files' contents, the clip list, the
    solver version and options, the robot model and the MuJoCo version.
 
-Tasks with motion: ``walk`` (DeepMimic ``humanoid3d_walk`` repeated to 10 s; CMU subject 131
-trial 01 from 4.5 s (a straight walk and stop; before, the subject turns round) and trial 02 from
-2 s to 9 s (a slow walk, without the turns at both ends)), ``run`` (DeepMimic ``humanoid3d_run`` and
-``humanoid3d_jog``, each repeated to 10 s), ``carry`` (the walking clips: the humanoid carried nothing,
-the robot's load is the task's).  Other tasks (``stand``, quadruped tasks) have no motion here: a clear
+Tasks with motion: ``walk``, ``run`` and ``carry`` (the clips are listed in `loco_il.motion.mocap.clips`).
+Other tasks (``stand``, quadruped tasks) have no motion here: a clear
 error says so.  Bodies need a keypoint map (every humanoid has one).
 
 Tasks that draw a version of the model per episode (``env.draw``: the carried mass of ``carry``, the
@@ -35,125 +31,35 @@ draw entries are that version's.
 from __future__ import annotations
 
 import hashlib
-import math
-import os
 import sys
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict
 from pathlib import Path
-from typing import Any, Iterable, Mapping, Optional, Sequence, Union
+from typing import Any, Iterable, Mapping, Optional, Sequence
 
+import mujoco
 import numpy as np
 
-from loco_il.utils.hashing import file_sha256
-from loco_il.datasets.trajectory import Trajectories
+from loco_il.datasets.gait import real_dispatcher
+from loco_il.datasets.providers.cache import (cache_key, datasets_cache_dir, init_states_path, regenerate_hint,
+                                              safe_name, save_to_cache)
+from loco_il.datasets.providers.expert import generation_env
+from loco_il.datasets.providers.init_states import InitStates
 from loco_il.datasets.providers.registry import (ProviderUnavailableError, register_real_provider,
-                                                   registered_providers)
+                                                 registered_providers)
+from loco_il.datasets.trajectory import Trajectories
+from loco_il.environments.registry import task_key
+from loco_il.environments.tasks import StepContext
+from loco_il.motion.mocap.clips import TASK_CLIPS, ClipSpec, find_motion_files, load_motion, provenance
+from loco_il.motion.mocap.retarget import (RETARGET_VERSION, RetargetOptions, RetargetResult, RobotKinematics,
+                                           retarget_clip)
+from loco_il.motion.mocap.robot_maps import ROBOT_MAPS, has_robot_map
+from loco_il.utils.hashing import file_sha256
 
-__all__ = ["ClipSpec", "TASK_CLIPS", "PROVENANCE", "MotionFilesMissingError", "mocap_search_path", "find_motion_files",
-           "load_motion", "real_provider", "retarget_task", "REAL_GENERATOR_VERSION", "MOCAP_ENV"]
+__all__ = ["real_provider", "retarget_task", "result_to_trajectories", "REAL_GENERATOR_VERSION"]
 
-#: environment variable naming the folder of motion files
-MOCAP_ENV = "LOCO_IL_MOCAP"
 #: bump when the way clips become datasets changes (part of the cache key; the solver has its own version)
 REAL_GENERATOR_VERSION = 1
-#: the motion clips shipped with loco_il (DeepMimic's walk/run/jog/long_walk3 and character file under the MIT
-#: licence, CMU subject 131 trials 01-03 with the CMU acknowledgement): see ``mocap/data/README.md``
-PACKAGED_MOCAP = Path(__file__).resolve().parent / "mocap" / "data"
-
-
-@dataclass(frozen=True)
-class ClipSpec:
-    """One motion file and how to use it.
-
-    ``path``: relative to the mocap folder (or absolute); ``start`` / ``stop``: seconds kept
-    (None = the whole clip); ``duration``: repeat a cyclic clip until it lasts at least this long.
-    """
-
-    path: str
-    start: Optional[float] = None
-    stop: Optional[float] = None
-    duration: Optional[float] = None
-
-
-TASK_CLIPS: dict[str, tuple[ClipSpec, ...]] = {
-    "walk": (ClipSpec("deepmimic/humanoid3d_walk.txt", duration=10.0),
-             ClipSpec("cmu_bvh/131_01.bvh", start=4.5),           # before 4.5 s the subject turns round
-             ClipSpec("cmu_bvh/131_02.bvh", start=2.0, stop=9.0)),  # without the turns at the start and end
-    "run": (ClipSpec("deepmimic/humanoid3d_run.txt", duration=10.0),
-            ClipSpec("deepmimic/humanoid3d_jog.txt", duration=10.0)),
-}
-TASK_CLIPS["carry"] = TASK_CLIPS["walk"]     # LocoMuJoCo's carry datasets are its walking datasets too
-
-#: licence / provenance line per source folder (from shared/README.md)
-PROVENANCE = {
-    "deepmimic": "DeepMimic repository (MIT licence, see LICENSE-DeepMimic-MIT.txt); the motions were captured "
-                 "at the CMU and SFU motion-capture labs",
-    "cmu_bvh": "CMU Graphics Lab Motion Capture Database, subject 131 (BVH conversion): free for use in research "
-               "and commercial projects. The data used in this project was obtained from mocap.cs.cmu.edu. The "
-               "database was created with funding from NSF EIA-0196217.",
-}
-
-
-class MotionFilesMissingError(ProviderUnavailableError):
-    """The motion-capture files a `real` dataset needs are not where loco_il looks."""
-
-
-# ----------------------------------------------------------------------------- files
-
-
-def mocap_search_path() -> list[Path]:
-    """Folders searched for motion files, in order: ``$LOCO_IL_MOCAP`` (when set: the user's own clips), the
-    clips shipped in the package (:data:`PACKAGED_MOCAP`), then ``~/.cache/loco_il/mocap``."""
-    given = os.environ.get(MOCAP_ENV)
-    user = [Path(given).expanduser()] if given else []
-    return user + [PACKAGED_MOCAP, Path.home() / ".cache" / "loco_il" / "mocap"]
-
-
-def _lookup(folder: Path, rel: str) -> Optional[Path]:
-    p = Path(rel)
-    if p.is_absolute():
-        return p if p.is_file() else None
-    for cand in (folder / p, folder / p.name):
-        if cand.is_file():
-            return cand
-    return None
-
-
-def find_motion_files(specs: Sequence[ClipSpec], what: str = "") -> list[Path]:
-    """Paths of the specs' files, all from one folder of the search path (the first that has
-    them all); :class:`MotionFilesMissingError` naming the files and where to put them."""
-    search = mocap_search_path()
-    for folder in search:
-        found = [_lookup(folder, s.path) for s in specs]
-        if all(f is not None for f in found):
-            return found                                        # type: ignore[return-value]
-    missing = [s.path for s in specs if all(_lookup(folder, s.path) is None for folder in search)]
-    where = ", ".join(str(f) for f in search)
-    raise MotionFilesMissingError(
-        f"{what or 'this real dataset'} is built from motion-capture files that were not found: "
-        f"{', '.join(missing) or 'not all in one folder'} (looked in {where}). Put them in one folder, keeping "
-        f"their sub-folders (e.g. <folder>/{specs[0].path}), and set ${MOCAP_ENV} to that folder. More DeepMimic "
-        f"clips (humanoid3d_*.txt) come from the DeepMimic repository (data/motions, MIT licence); BVH files from "
-        f"the CMU motion-capture database (mocap.cs.cmu.edu, BVH conversions).")
-
-
-def load_motion(path: Union[str, os.PathLike], spec: Optional[ClipSpec] = None):
-    """A :class:`~loco_il.datasets.mocap.skeleton.MotionClip` from a DeepMimic or BVH file, trimmed to
-    ``spec.start``/``spec.stop``; returns ``(clip, n_cycles)`` (repeats needed for ``spec.duration``)."""
-    from loco_il.datasets.mocap import load_bvh, load_deepmimic
-
-    path = Path(path)
-    clip = load_bvh(path) if path.suffix.lower() == ".bvh" else load_deepmimic(path)
-    n_cycles = 1
-    if spec is not None:
-        if spec.start is not None or spec.stop is not None:
-            a = 0 if spec.start is None else int(round(spec.start * clip.fps))
-            b = None if spec.stop is None else int(round(spec.stop * clip.fps)) + 1
-            clip = clip.slice(a, b)
-        if spec.duration and clip.loop and clip.duration > 0:
-            n_cycles = max(1, math.ceil(spec.duration / clip.duration))
-    return clip, n_cycles
 
 
 def _model_fingerprint(model: Any) -> str:
@@ -164,13 +70,6 @@ def _model_fingerprint(model: Any) -> str:
                  "site_pos", "qpos0", "eq_data", "eq_obj1id", "eq_obj2id", "eq_type"):
         h.update(np.ascontiguousarray(getattr(model, name)).tobytes())
     return h.hexdigest()[:16]
-
-
-def _provenance(path: Path) -> str:
-    for key, line in PROVENANCE.items():
-        if key in path.parts or path.parent.name == key:
-            return line
-    return "user-supplied motion file (check its licence)"
 
 
 # ----------------------------------------------------------------------------- generation
@@ -200,8 +99,6 @@ def retarget_task(env: Any, specs: Sequence[ClipSpec], paths: Sequence[Path], op
                   verbose: bool = True) -> tuple[Trajectories, Any, list]:
     """Retarget the clips to ``env`` (a full-observation env) and build the dataset; returns
     ``(trajectories, init_states, results)``."""
-    from loco_il.datasets.mocap.retarget import RobotKinematics, retarget_clip, result_to_trajectories
-    from loco_il.datasets.providers.expert import InitStates
 
     draw = getattr(env, "draw", None)
     if draw is not None:
@@ -235,8 +132,6 @@ def _per_version(env: Any, results: Sequence[Any]) -> tuple[Trajectories, Any]:
     """Every retargeted clip on every version of the model the env's mode draws from (see the module doc)."""
     from dataclasses import replace
 
-    from loco_il.datasets.mocap.retarget import result_to_trajectories
-    from loco_il.datasets.providers.expert import InitStates
 
     draw, parts, mapped_all = env.draw, [], []
     for index in env.draw_indices:
@@ -265,6 +160,70 @@ def _per_version(env: Any, results: Sequence[Any]) -> tuple[Trajectories, Any]:
     return data, init
 
 
+def result_to_trajectories(env: Any, results: Sequence[RetargetResult], info: Optional[Mapping[str, Any]] = None,
+                           evaluate_reward: bool = True) -> Trajectories:
+    """A `real` :class:`Trajectories` (one episode per retargeted clip).
+
+    Observations are what ``env`` emits in each retargeted state (``env.set_sim_state``), so the
+    layout is ``env.obs_spec``'s; use a full-observation env (no ``.pomdp``).  Transition ``t`` goes
+    from frame ``t`` to frame ``t + 1``; absorbing is False everywhere (a recorded motion does not
+    end in a fall) and ``last`` marks each clip's end.  Rewards: with ``evaluate_reward`` the
+    task's reward evaluated on the motion (the velocity of the task's reference point from frame t
+    to t + 1, with a zero action since motion capture has none), else zeros.  The task's
+    termination rule is evaluated too: ``info["terminated_fraction"]`` is the share of transitions
+    it would have ended (states outside the task's height / orientation bounds).
+    """
+    obs_l, nobs_l, last_l, rew_l, term_l = [], [], [], [], []
+    task = getattr(env, "task", None)
+    can_eval = evaluate_reward and task is not None and hasattr(env, "_velocity_point")
+    if can_eval:
+        zero = np.zeros(env.model.nu)
+    for r in results:
+        if r.n_frames < 2:
+            raise ValueError("a retargeted clip needs at least 2 frames")
+        obs, points = [], []
+        for q, v in zip(r.qpos, r.qvel):
+            obs.append(env.set_sim_state(q, v))
+            if can_eval:
+                points.append(env._velocity_point().copy())
+        obs = np.asarray(obs, dtype=np.float64)
+        n = r.n_frames - 1
+        rew, term = np.zeros(n), np.zeros(n, dtype=bool)
+        if can_eval:
+            cmd = env.command
+            for i in range(n):
+                env.set_sim_state(r.qpos[i + 1], r.qvel[i + 1])
+                ctx = StepContext(env.model, env.data, env.dt, zero, points[i], points[i + 1], cmd)
+                term[i] = bool(task.termination(ctx)) if task.termination else False
+                ctx.healthy = not term[i]
+                rew[i] = float(env.reward_fn(ctx)[0])
+        obs_l.append(obs[:-1])
+        nobs_l.append(obs[1:])
+        rew_l.append(rew)
+        term_l.append(term)
+        last = np.zeros(n, dtype=bool)
+        last[-1] = True
+        last_l.append(last)
+    obs = np.concatenate(obs_l)
+    n = len(obs)
+    terms = np.concatenate(term_l)
+    full_info = {
+        "task_id": getattr(env, "task_id", None), "dataset_type": "real",
+        "obs_names": list(env.obs_spec.names), "simulator": f"mujoco {mujoco.__version__}", "seed": None,
+        "policy_checksum": None,
+        "reward": ("task reward evaluated on the motion (zero action: motion capture has no actions)" if can_eval
+                   else "zeros (motion capture has no reward)"),
+        "terminated_fraction": float(terms.mean()) if can_eval else None,
+        "retarget_version": RETARGET_VERSION,
+        "episode_metrics": [dict(r.metrics) for r in results],
+        "episode_sources": [r.source for r in results],
+        "episode_returns": [float(x.sum()) for x in rew_l],
+    }
+    full_info.update(info or {})
+    return Trajectories(obs, np.concatenate(nobs_l), None, np.concatenate(rew_l), np.zeros(n, dtype=bool),
+                        np.concatenate(last_l), full_info)
+
+
 def _quality(results: Sequence[Any]) -> dict:
     """Frame-weighted means over episodes (maxima for the max entries)."""
     frames = np.array([r.metrics["frames"] for r in results], dtype=float)
@@ -286,17 +245,11 @@ def real_provider(env: Any, *, clips: Optional[Iterable[Any]] = None, options: A
     """The `real` dataset of ``env``'s task (full observations) and the episodes' initial states.
 
     ``clips``: motion files (paths relative to the mocap folder, absolute paths or :class:`ClipSpec`)
-    instead of the task's; ``options``: a :class:`~loco_il.datasets.mocap.retarget.RetargetOptions`
+    instead of the task's; ``options``: a :class:`~loco_il.motion.mocap.retarget.RetargetOptions`
     (or a dict of its fields); ``n_episodes``: keep the first n clips (a task with a draw gets each clip once per
     version its mode draws from).  ``generation_seed`` is
     accepted and ignored (retargeting is deterministic).
     """
-    import mujoco
-
-    from loco_il.datasets.mocap.retarget import RETARGET_VERSION, RetargetOptions
-    from loco_il.datasets.mocap.robot_maps import ROBOT_MAPS, has_robot_map
-    from loco_il.datasets.providers.expert import (InitStates, _regen_hint, cache_key, datasets_cache_dir,
-                                                   generation_env, init_states_path, save_to_cache, task_key)
 
     for name in ("expert", "expert_path", "snapshots"):
         if unused.pop(name, None) is not None:
@@ -308,7 +261,7 @@ def real_provider(env: Any, *, clips: Optional[Iterable[Any]] = None, options: A
         raise ProviderUnavailableError(
             f"{task_id}: real datasets are human motion capture retargeted to the robot, which needs a keypoint "
             f"map of the body; {env.body_name} has none (maps exist for {', '.join(sorted(ROBOT_MAPS))}; add one "
-            f"in loco_il/datasets/mocap/robot_maps.py)")
+            f"in loco_il/motion/mocap/robot_maps.py)")
     specs = _as_specs(clips, env.task_name, task_id)
     if n_episodes is not None:
         if not 1 <= int(n_episodes) <= len(specs):
@@ -337,10 +290,9 @@ def real_provider(env: Any, *, clips: Optional[Iterable[Any]] = None, options: A
         if gen_env.draw is not None:
             fields["draw"] = {"values": list(gen_env.draw.values), "indices": list(gen_env.draw_indices)}
         hkey = cache_key(fields)
-        safe = "".join(c if c.isalnum() or c in "-_." else "_" for c in key)
-        path = datasets_cache_dir() / safe / f"real-n{len(specs)}-{hkey}.npz"
+        path = datasets_cache_dir() / safe_name(key) / f"real-n{len(specs)}-{hkey}.npz"
         side = init_states_path(path)
-        hint = _regen_hint(path)
+        hint = regenerate_hint(path)
         if not regenerate and path.exists() and side.exists():
             data = Trajectories.load(path, regenerate_hint=hint,
                                      expect={"cache_key": hkey, "obs_names": list(gen_env.full_obs_spec.names),
@@ -352,14 +304,14 @@ def real_provider(env: Any, *, clips: Optional[Iterable[Any]] = None, options: A
             _log(f"[loco_il.datasets] retargeting {len(specs)} motion clip(s) to {key} -> {path}")
         data, init, results = retarget_task(gen_env, specs, paths, opts, verbose=verbose)
         sources = [{"file": p.name, "clip": s.path, "start": s.start, "stop": s.stop, "duration": s.duration,
-                    "sha256": f["sha256"], "licence": _provenance(p)} for s, p, f in zip(specs, paths, fields["clips"])]
+                    "sha256": f["sha256"], "licence": provenance(p)} for s, p, f in zip(specs, paths, fields["clips"])]
         licences = sorted({s["licence"] for s in sources})
         quality = _quality(results)
         info = dict(data.info)
         info.update(
             task_id=f"{key}.real",
             source=(f"human motion capture ({', '.join(s['file'] for s in sources)}) retargeted to {env.body_name} "
-                    f"by loco_il.datasets.mocap.retarget v{RETARGET_VERSION}. Licences: " + " | ".join(licences)),
+                    f"by loco_il.motion.mocap.retarget v{RETARGET_VERSION}. Licences: " + " | ".join(licences)),
             sources=sources, quality=quality, cache_key=hkey, cache_fields=fields,
             generator=f"loco_il.datasets.real v{REAL_GENERATOR_VERSION}",
             robot_height_m=ROBOT_MAPS[env.body_name].height,
@@ -379,7 +331,6 @@ def real_provider(env: Any, *, clips: Optional[Iterable[Any]] = None, options: A
 def _register() -> None:
     if "real" not in registered_providers():      # a user's provider registered earlier wins
         # quadrupeds get states from the simulated trot generator, humanoids from retargeted mocap
-        from loco_il.datasets.gait.provider import real_dispatcher
         register_real_provider(real_dispatcher(real_provider))
 
 

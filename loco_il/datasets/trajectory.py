@@ -44,20 +44,20 @@ import json
 import os
 import pathlib
 import tempfile
-import zipfile
 from dataclasses import dataclass, field
 from typing import Any, Dict, Iterable, Iterator, List, Mapping, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
+from loco_il.datasets.npz import load_error, read_npz
 from loco_il.datasets.splits import DEFAULT_PORTION, make_split
+from loco_il.environments.registry import DATASET_TYPES
+from loco_il.utils.errors import DatasetError
 
 PathLike = Union[str, "os.PathLike[str]"]
 
 #: Version of the on-disk layout written by :meth:`Trajectories.save`.
 FORMAT_VERSION = 1
-#: Allowed values of ``info["dataset_type"]``.
-DATASET_TYPES = ("real", "perfect", "preference")
 #: Keys always present in ``info`` (``None`` when unknown).
 REQUIRED_INFO_KEYS = (
     "task_id",
@@ -68,15 +68,9 @@ REQUIRED_INFO_KEYS = (
     "seed",
     "policy_checksum",
 )
-#: Hint appended to load errors when the caller gives none.
-DEFAULT_REGENERATE_HINT = "delete it and call env.create_dataset() again to regenerate it"
 
 _FLOAT_DTYPES = (np.dtype(np.float32), np.dtype(np.float64))
 _ARRAY_FIELDS = ("obs", "next_obs", "actions", "rewards", "absorbing", "last")
-
-
-class DatasetError(ValueError):
-    """A dataset is malformed, or a dataset file is missing, corrupt or mismatched."""
 
 
 # ----------------------------------------------------------------------------- helpers
@@ -555,7 +549,7 @@ class Trajectories:
         Args:
             path: the ``.npz`` file.
             regenerate_hint: how the user can rebuild the file, put in error
-                messages; default :data:`DEFAULT_REGENERATE_HINT`.
+                messages; default :data:`~loco_il.datasets.npz.DEFAULT_REGENERATE_HINT`.
             expect: optional values the file must match: any ``info`` key
                 (e.g. ``{"task_id": ..., "obs_names": [...]}``) and/or the
                 special keys ``obs_dim``, ``act_dim`` (None = no actions),
@@ -567,54 +561,43 @@ class Trajectories:
                 ``expect``. The message names the file and says how to regenerate it.
         """
         path = pathlib.Path(path)
-        hint = regenerate_hint or DEFAULT_REGENERATE_HINT
-
-        def fail(reason: str) -> DatasetError:
-            return DatasetError(f"cannot load dataset file '{path}': {reason}. To fix this, {hint}.")
-
-        if not path.is_file():
-            raise fail("the file does not exist")
+        fail = load_error(path, "dataset file", regenerate_hint)
         # a file named .npz that is no archive is a damaged dataset (rebuilt by the hint); any other file that is no
         # archive (a log.csv, an .npy) is not a dataset at all: nothing to rebuild or delete, the path is wrong
-        kind = None if path.suffix == ".npz" else _not_an_archive(path)
+        kind = None if path.suffix == ".npz" or not path.is_file() else _not_an_archive(path)
         if kind:
             raise DatasetError(f"'{path}' is not a dataset file: it is {kind}, and a dataset is the .npz archive "
                                f"written by Trajectories.save; check the path")
-        try:
-            with np.load(path, allow_pickle=False) as z:
-                keys = set(z.files)
-                required = {"format_version", "info_json", "obs", "rewards", "absorbing", "last"}
-                missing = sorted(required - keys)
-                if not ({"next_obs", "next_obs_last"} & keys):
-                    missing.append("next_obs")
-                if missing:
-                    raise fail(f"missing key(s) {missing} (found {sorted(keys)})")
-                version = z["format_version"]
-                if version.shape != () or int(version) != FORMAT_VERSION:
-                    raise fail(
-                        f"it has format version {version.tolist()}, this loco_il reads version {FORMAT_VERSION}"
-                    )
-                info = json.loads(str(z["info_json"]))
-                obs = z["obs"]
-                last = z["last"]
-                if "next_obs" in keys:
-                    next_obs = z["next_obs"]
-                else:
-                    tail = z["next_obs_last"]
-                    if obs.ndim != 2 or last.shape != obs.shape[:1] or last.dtype != np.bool_ or not last[-1:].all():
-                        raise fail("its obs/last arrays are inconsistent")
-                    if tail.shape != (int(np.count_nonzero(last)), obs.shape[1]):
-                        raise fail(f"'next_obs_last' has shape {tail.shape}, inconsistent with 'obs' and 'last'")
-                    next_obs = np.empty_like(obs)
-                    next_obs[:-1] = obs[1:]
-                    next_obs[last] = tail
-                actions = z["actions"] if "actions" in keys else None
-                rewards = z["rewards"]
-                absorbing = z["absorbing"]
-        except DatasetError:
-            raise
-        except (OSError, EOFError, ValueError, KeyError, zipfile.BadZipFile, json.JSONDecodeError) as exc:
-            raise fail(f"the file is truncated or corrupt ({type(exc).__name__}: {exc})") from exc
+        with read_npz(path, fail) as z:
+            keys = set(z.files)
+            required = {"format_version", "info_json", "obs", "rewards", "absorbing", "last"}
+            missing = sorted(required - keys)
+            if not ({"next_obs", "next_obs_last"} & keys):
+                missing.append("next_obs")
+            if missing:
+                raise fail(f"missing key(s) {missing} (found {sorted(keys)})")
+            version = z["format_version"]
+            if version.shape != () or int(version) != FORMAT_VERSION:
+                raise fail(
+                    f"it has format version {version.tolist()}, this loco_il reads version {FORMAT_VERSION}"
+                )
+            info = json.loads(str(z["info_json"]))
+            obs = z["obs"]
+            last = z["last"]
+            if "next_obs" in keys:
+                next_obs = z["next_obs"]
+            else:
+                tail = z["next_obs_last"]
+                if obs.ndim != 2 or last.shape != obs.shape[:1] or last.dtype != np.bool_ or not last[-1:].all():
+                    raise fail("its obs/last arrays are inconsistent")
+                if tail.shape != (int(np.count_nonzero(last)), obs.shape[1]):
+                    raise fail(f"'next_obs_last' has shape {tail.shape}, inconsistent with 'obs' and 'last'")
+                next_obs = np.empty_like(obs)
+                next_obs[:-1] = obs[1:]
+                next_obs[last] = tail
+            actions = z["actions"] if "actions" in keys else None
+            rewards = z["rewards"]
+            absorbing = z["absorbing"]
         try:
             data = cls(obs, next_obs, actions, rewards, absorbing, last, info)
         except DatasetError as exc:
@@ -671,7 +654,5 @@ __all__ = [
     "Trajectories",
     "DatasetError",
     "FORMAT_VERSION",
-    "DATASET_TYPES",
     "REQUIRED_INFO_KEYS",
-    "DEFAULT_REGENERATE_HINT",
 ]

@@ -12,6 +12,7 @@ from typing import Any
 
 from loco_il.environments.body import Body
 
+#: The dataset types, the last part of a Task-ID (and ``info["dataset_type"]`` of a dataset).
 DATASET_TYPES = ("real", "perfect", "preference")
 _BODIES: dict[str, Body] = {}
 
@@ -124,6 +125,18 @@ def parse_task_id(task_id: str) -> TaskID:
             raise UnknownTaskError(f"unknown variant {variant!r} of {body_name}; closest: "
                                    f"{_suggest(variant, known)} (see list_variants({body_name!r}))")
     return TaskID(body_name, variant or None, task, dataset, pomdp, mode)
+
+
+def task_key(env_or_id: Any) -> str:
+    """``<Body>[-<variant>].<task>[.<mode>]`` of an env or a Task-ID (dataset type and ``.pomdp`` dropped): the key
+    of a task's experts, baselines and cached datasets."""
+    if isinstance(env_or_id, str):
+        tid = parse_task_id(env_or_id)
+        body, variant, task, mode = tid.body, tid.variant, tid.task, tid.mode
+    else:
+        body, variant, task = env_or_id.body_name, getattr(env_or_id, "variant", None), env_or_id.task_name
+        mode = getattr(env_or_id, "mode", None)
+    return f"{body}{'-' + variant if variant else ''}.{task}{'.' + mode if mode else ''}"
 
 
 def make(task_id: str, **kwargs: Any):

@@ -269,7 +269,7 @@ def expert_observations(cfg: Mapping[str, Any], env: Any) -> tuple[np.ndarray | 
 def evaluate_run(run_dir: str | Path, episodes: int = 10, seed: int | None = None, similarity: bool = True,
                  max_points: int = 1000, deterministic: bool = True) -> dict[str, Any]:
     """Score a run dir's trained policy; the dict has the keys of the run's `eval.json`."""
-    from loco_il.datasets.providers.expert import task_key
+    from loco_il.environments.registry import task_key
     from loco_il.environments.registry import make
     cfg = load_run_config(run_dir)
     agent, source = load_run_agent(run_dir)

@@ -537,7 +537,7 @@ class Runner:
         return row
 
     def _final(self, agent, eval_env, counters: dict, wall: float) -> dict:
-        from loco_il.datasets.providers.expert import task_key
+        from loco_il.environments.registry import task_key
         from loco_il.evaluation import (evaluate_agent, evaluate_averaged_actor, normalized, trajectory_similarity,
                                         write_json)
         ev = self.eval_cfg

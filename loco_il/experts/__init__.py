@@ -1,8 +1,12 @@
-"""Expert training: PPO experts that generate the `perfect` and `preference` datasets.
+"""Experts: the policies that generate the `perfect` and `preference` datasets, and their training.
 
     from loco_il.experts import load_expert
     expert = load_expert("runs/experts/Hopper.run/seed0/best.pt")
     action = expert(obs)                      # deterministic (Gaussian mean), in [-1, 1]
+
+* `files.py`     where a task's expert is found (shipped, ``$LOCO_IL_EXPERTS``) and how it is loaded
+* `registry.py`  built-in experts that need no file (`trot.py`: the quadrupeds' trot controller)
+* `policy.py`    `ExpertPolicy` and its file format; `tracking/`: motion-tracking experts
 
 Train with `python -m loco_il.experts train task=Hopper.run total_steps=2000000 num_envs=16 out_dir=...`.
 """

@@ -2,8 +2,10 @@
 from __future__ import annotations
 
 import hashlib
+import json
 import os
 from pathlib import Path
+from typing import Any
 
 
 def file_sha256(path: str | os.PathLike) -> str:
@@ -13,6 +15,12 @@ def file_sha256(path: str | os.PathLike) -> str:
         for block in iter(lambda: handle.read(1 << 20), b""):
             digest.update(block)
     return digest.hexdigest()
+
+
+def plain_json(obj: Any) -> Any:
+    """``obj`` as plain JSON types (arrays as lists, anything else unknown as its ``str``): the stable form of
+    parameters that go into a hashed cache key."""
+    return json.loads(json.dumps(obj, default=lambda o: o.tolist() if hasattr(o, "tolist") else str(o)))
 
 
 #: suffix of a checksum file next to the file it covers (`sha256sum -c` reads it)

@@ -10,6 +10,8 @@ from loco_il.datasets import providers as prov
 from loco_il.datasets.providers import expert as expert_mod
 from loco_il.environments.base import LocoEnv
 from loco_il.environments.registry import get_body, make
+from loco_il.experts import files as expert_files
+from loco_il.experts.registry import builtin_expert
 
 torch.set_num_threads(1)
 
@@ -54,7 +56,7 @@ def dirs(tmp_path, monkeypatch):
     shipped.mkdir()
     monkeypatch.setenv("LOCO_IL_DATASETS", str(cache))
     monkeypatch.setenv("LOCO_IL_EXPERTS", str(experts))
-    monkeypatch.setattr(expert_mod, "SHIPPED_DIR", shipped)   # ignore experts the repository ships
+    monkeypatch.setattr(expert_files, "SHIPPED_DIR", shipped)   # ignore experts the repository ships
     return {"cache": cache, "experts": experts}
 
 
@@ -180,7 +182,7 @@ def test_split_disjoint_reproducible_and_aligned(dirs, hopper_expert):
 
 def test_installed_expert_file_and_pomdp(dirs):
     pol = linear_expert_file(dirs["experts"] / "InvertedPendulum.balance" / "expert.pt", PENDULUM_GOOD[None] * 0.3)
-    assert prov.available_experts() == ["InvertedPendulum.balance"]
+    assert expert_files.available_experts() == ["InvertedPendulum.balance"]
     env = make("InvertedPendulum.balance.perfect")
     data, init = create_dataset(env, n_episodes=2, verbose=False, return_init_states=True)
     assert data.info["policy_checksum"] == pol.checksum()
@@ -209,7 +211,7 @@ def test_installed_expert_file_and_pomdp(dirs):
 
 def test_task_without_expert_names_those_with_one(dirs):
     linear_expert_file(dirs["experts"] / "InvertedPendulum.balance" / "expert.pt", PENDULUM_GOOD[None])
-    with pytest.raises(prov.NoExpertError) as exc:
+    with pytest.raises(expert_files.NoExpertError) as exc:
         create_dataset("Hopper.run.perfect", verbose=False)
     msg = str(exc.value)
     assert "Hopper.run" in msg and "InvertedPendulum.balance" in msg
@@ -343,7 +345,7 @@ def test_workers_record_the_same_episodes_in_seed_order():
     the progress lines still count the episodes in order."""
     from loco_il.experts.policy import load_expert
     lines: list[str] = []
-    hopper = load_expert(expert_mod.SHIPPED_DIR / "Hopper.run" / "expert.pt")
+    hopper = load_expert(expert_files.SHIPPED_DIR / "Hopper.run" / "expert.pt")
     one, many = _rollout_both_ways("Hopper.run.perfect", hopper, 5, 60, log=lines.append)
     _assert_same_rollouts(one, many)
     starts = [a for a, _ in one[0].episode_bounds()]
@@ -351,7 +353,7 @@ def test_workers_record_the_same_episodes_in_seed_order():
     assert "recording 5 episodes in 2 worker processes" in lines[0]
     assert [line.split("episode ")[1].split(",")[0] for line in lines[1:]] == [f"{k}/5" for k in range(1, 6)]
     env = make("UnitreeA1.simple.perfect")
-    trot = expert_mod.builtin_expert("UnitreeA1.simple").expert(env)
+    trot = builtin_expert("UnitreeA1.simple").expert(env)
     _assert_same_rollouts(*_rollout_both_ways("UnitreeA1.simple.perfect", trot, 3, 40))
 
 

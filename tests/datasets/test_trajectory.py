@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 
 from loco_il.datasets import DatasetError, Trajectories
+from loco_il.datasets.npz import DEFAULT_REGENERATE_HINT
 from loco_il.datasets.splits import make_split
-from loco_il.datasets.trajectory import DEFAULT_REGENERATE_HINT, FORMAT_VERSION, REQUIRED_INFO_KEYS
+from loco_il.datasets.trajectory import FORMAT_VERSION, REQUIRED_INFO_KEYS
 
 from dataset_factories import assert_same, make_dataset  # tests/datasets is on sys.path under pytest
 

@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 
 from loco_il import LocoEnv
-from loco_il.datasets.providers.expert import NoExpertError
-from loco_il.datasets.real import ClipSpec
 from loco_il.environments.registry import UnknownTaskError, get_all_task_names, parse_task_id
+from loco_il.experts.files import NoExpertError
+from loco_il.motion.mocap.clips import ClipSpec
 
 # loco_mujoco 0.4.1 `LocoEnv.get_all_task_names()` without MyoSkeleton's two (its licence forbids redistribution),
 # with (obs, act) sizes from its environment docs (shared/reference/locomujoco-0.4.1.md)

@@ -38,9 +38,9 @@ import torch
 from mushroom_rl.core import Agent
 from torch import nn
 
+from loco_il.environments.registry import DATASET_TYPES
 from loco_il.utils.atomic import atomic_torch_save
 
-DATASET_TYPES = frozenset({"perfect", "preference", "real"})
 
 #: registry of concrete agents: lower-case name -> class
 ALGORITHMS: dict[str, type["ILAgent"]] = {}
@@ -108,7 +108,7 @@ class ILAgent(Agent):
                 raise ValueError(f"algorithm name {key!r} registered twice "
                                  f"({ALGORITHMS[key].__qualname__} and {cls.__qualname__})")
             ALGORITHMS[key] = cls
-            if not set(cls.supported_datasets) <= DATASET_TYPES:
+            if not set(cls.supported_datasets).issubset(DATASET_TYPES):
                 raise ValueError(f"{cls.__qualname__}.supported_datasets has unknown types")
 
     @classmethod

@@ -14,7 +14,8 @@ import os
 from pathlib import Path
 from typing import Any, Callable
 
-from loco_il.datasets.trajectory import DatasetError
+from loco_il.environments.registry import DATASET_TYPES
+from loco_il.utils.errors import DatasetError
 
 Provider = Callable[..., Any]
 
@@ -29,7 +30,6 @@ class ProviderUnavailableError(DatasetError):
 
 def register_provider(dataset_type: str, fn: Provider, *, replace: bool = False) -> None:
     """Register the provider of a dataset type; ``replace=True`` overrides an existing one."""
-    from loco_il.datasets.trajectory import DATASET_TYPES
     if dataset_type not in DATASET_TYPES:
         raise ValueError(f"unknown dataset type {dataset_type!r}; one of {DATASET_TYPES}")
     if not callable(fn):

@@ -157,7 +157,7 @@ def _horizontal_root_addresses(model: mujoco.MjModel) -> np.ndarray:
 
 def end_effector_bodies(body_name: str) -> tuple[str, ...]:
     """The feet bodies of a robot, from its keypoint map (ankle and toe keypoints, de-duplicated)."""
-    from loco_il.datasets.mocap.robot_maps import get_robot_map, parse_point
+    from loco_il.motion.mocap.robot_maps import get_robot_map, parse_point
     robot_map = get_robot_map(body_name)
     names: list[str] = []
     for key in END_EFFECTOR_KEYPOINTS:
@@ -222,8 +222,8 @@ def build_reference(env: Any, *, target_speed: float | None = None, samples: int
     `target_speed`: m/s the reference is time-scaled to (None: as captured); `samples`: phases per cycle
     (default: one per control step of the captured cycle); `clip`: a `ClipSpec` instead of the task's first clip.
     """
-    from loco_il.datasets.mocap.retarget import RetargetOptions, retarget_clip
-    from loco_il.datasets.real import TASK_CLIPS, find_motion_files, load_motion
+    from loco_il.motion.mocap.retarget import RetargetOptions, retarget_clip
+    from loco_il.motion.mocap.clips import TASK_CLIPS, find_motion_files, load_motion
 
     if clip is None:
         clips = TASK_CLIPS.get(env.task_name)

@@ -9,11 +9,11 @@ import pytest
 from loco_il import LocoEnv
 from loco_il.datasets import DatasetError
 from loco_il.datasets.baselines import get_baseline
-from loco_il.datasets.gait import TrotExpert
-from loco_il.datasets.gait.expert import PREFERENCE_LEVELS
 from loco_il.datasets.providers import expert as expert_mod
 from loco_il.datasets.providers.expert import replay_episode
 from loco_il.environments.registry import make
+from loco_il.experts import files as expert_files
+from loco_il.experts.trot import PREFERENCE_LEVELS, TrotExpert
 
 GOAL_SPEED = 0.5
 HORIZON = 250        # 2.5 s: speed ramp (0.5 s) plus two seconds of trot
@@ -25,7 +25,7 @@ VX = {"UnitreeA1": "dq_trunk_tx", "UnitreeGo1": "dq_root_vx"}
 def private_cache(tmp_path, monkeypatch):
     monkeypatch.setenv("LOCO_IL_DATASETS", str(tmp_path / "datasets"))
     monkeypatch.setenv("LOCO_IL_EXPERTS", str(tmp_path / "no-experts"))
-    monkeypatch.setattr(expert_mod, "SHIPPED_DIR", tmp_path / "no-shipped")   # the built-in expert, not a file
+    monkeypatch.setattr(expert_files, "SHIPPED_DIR", tmp_path / "no-shipped")   # the built-in expert, not a file
 
 
 @pytest.mark.parametrize("body", ["UnitreeA1", "UnitreeGo1"])

@@ -6,16 +6,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from loco_il.datasets.mocap import (
+from loco_il.motion.mocap import (
     DeepMimicFormatError,
     canonical_keypoints,
     humanoid3d_skeleton,
     load_bvh,
     load_deepmimic,
 )
-from loco_il.datasets.mocap.deepmimic import HUMANOID3D_JOINTS
+from loco_il.motion.mocap.deepmimic import HUMANOID3D_JOINTS
 
-from loco_il.datasets.real import PACKAGED_MOCAP  # noqa: E402  (the clips shipped in the package)
+from loco_il.motion.mocap.clips import PACKAGED_MOCAP  # noqa: E402  (the clips shipped in the package)
 DM_DIR = PACKAGED_MOCAP / "deepmimic"
 
 ALL_KEYPOINTS = ["pelvis", "l_hip", "r_hip", "l_knee", "r_knee", "l_ankle", "r_ankle", "l_toe",

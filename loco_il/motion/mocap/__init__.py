@@ -4,6 +4,10 @@ Every loader returns clips in one convention: Z up, X forward, Y left, metres,
 w-first quaternions, joints renamed to standard names where known, so that
 :func:`canonical_keypoints` gives the same keypoint set for any source (the input
 of inverse-kinematics retargeting).  See :mod:`.skeleton` for the details.
+
+:mod:`.clips` says which clips a task uses and finds their files (the shipped ones are in ``data/``, with
+their licences); :mod:`.retarget` turns a clip into a robot's motion with the keypoint maps of
+:mod:`.robot_maps`.
 """
 
 from .bvh import BVHParseError, load_bvh, parse_bvh

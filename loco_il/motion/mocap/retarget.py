@@ -66,7 +66,7 @@ from __future__ import annotations
 import dataclasses
 import time
 from dataclasses import dataclass, field
-from typing import Any, Mapping, Optional, Sequence
+from typing import Any, Mapping, Optional
 
 import mujoco
 import numpy as np
@@ -78,7 +78,7 @@ __all__ = [
     "RetargetOptions", "RetargetResult", "RobotKinematics", "retarget_clip", "retarget_keypoints",
     "retarget_robot_to_robot", "robot_keypoints", "build_targets", "detect_contacts", "foot_contacts",
     "align_heading", "loop_keypoints", "resample_keypoints", "smooth_keypoints", "sole_points", "leg_length",
-    "result_to_trajectories", "RETARGET_VERSION", "TARGET_TREE",
+    "RETARGET_VERSION", "TARGET_TREE",
 ]
 
 #: bump when the algorithm changes in a way that changes the output (part of dataset cache keys)
@@ -1069,73 +1069,3 @@ def retarget_robot_to_robot(src_env: Any, src_qpos_traj: np.ndarray, dst_env: An
     return retarget_keypoints(dst_env, kp, 1.0 / float(src_env.dt), options=opts, robot_map=dst_map,
                               source=f"{src_env.body_name} qpos trajectory", source_height=src_kin.map.height,
                               verbose=verbose)
-
-
-# =============================================================================== dataset
-
-
-def result_to_trajectories(env: Any, results: Sequence[RetargetResult], info: Optional[Mapping[str, Any]] = None,
-                           evaluate_reward: bool = True):
-    """A `real` :class:`~loco_il.datasets.trajectory.Trajectories` (one episode per result).
-
-    Observations are what ``env`` emits in each retargeted state (``env.set_sim_state``), so the
-    layout is ``env.obs_spec``'s; use a full-observation env (no ``.pomdp``).  Transition ``t`` goes
-    from frame ``t`` to frame ``t + 1``; absorbing is False everywhere (a recorded motion does not
-    end in a fall) and ``last`` marks each clip's end.  Rewards: with ``evaluate_reward`` the
-    task's reward evaluated on the motion (the velocity of the task's reference point from frame t
-    to t + 1, with a zero action since motion capture has none), else zeros.  The task's
-    termination rule is evaluated too: ``info["terminated_fraction"]`` is the share of transitions
-    it would have ended (states outside the task's height / orientation bounds).
-    """
-    from loco_il.datasets.trajectory import Trajectories
-
-    obs_l, nobs_l, last_l, rew_l, term_l = [], [], [], [], []
-    task = getattr(env, "task", None)
-    can_eval = evaluate_reward and task is not None and hasattr(env, "_velocity_point")
-    if can_eval:
-        from loco_il.environments.tasks import StepContext
-        zero = np.zeros(env.model.nu)
-    for r in results:
-        if r.n_frames < 2:
-            raise ValueError("a retargeted clip needs at least 2 frames")
-        obs, points = [], []
-        for q, v in zip(r.qpos, r.qvel):
-            obs.append(env.set_sim_state(q, v))
-            if can_eval:
-                points.append(env._velocity_point().copy())
-        obs = np.asarray(obs, dtype=np.float64)
-        n = r.n_frames - 1
-        rew, term = np.zeros(n), np.zeros(n, dtype=bool)
-        if can_eval:
-            cmd = env.command
-            for i in range(n):
-                env.set_sim_state(r.qpos[i + 1], r.qvel[i + 1])
-                ctx = StepContext(env.model, env.data, env.dt, zero, points[i], points[i + 1], cmd)
-                term[i] = bool(task.termination(ctx)) if task.termination else False
-                ctx.healthy = not term[i]
-                rew[i] = float(env.reward_fn(ctx)[0])
-        obs_l.append(obs[:-1])
-        nobs_l.append(obs[1:])
-        rew_l.append(rew)
-        term_l.append(term)
-        last = np.zeros(n, dtype=bool)
-        last[-1] = True
-        last_l.append(last)
-    obs = np.concatenate(obs_l)
-    n = len(obs)
-    terms = np.concatenate(term_l)
-    full_info = {
-        "task_id": getattr(env, "task_id", None), "dataset_type": "real",
-        "obs_names": list(env.obs_spec.names), "simulator": f"mujoco {mujoco.__version__}", "seed": None,
-        "policy_checksum": None,
-        "reward": ("task reward evaluated on the motion (zero action: motion capture has no actions)" if can_eval
-                   else "zeros (motion capture has no reward)"),
-        "terminated_fraction": float(terms.mean()) if can_eval else None,
-        "retarget_version": RETARGET_VERSION,
-        "episode_metrics": [dict(r.metrics) for r in results],
-        "episode_sources": [r.source for r in results],
-        "episode_returns": [float(x.sum()) for x in rew_l],
-    }
-    full_info.update(info or {})
-    return Trajectories(obs, np.concatenate(nobs_l), None, np.concatenate(rew_l), np.zeros(n, dtype=bool),
-                        np.concatenate(last_l), full_info)

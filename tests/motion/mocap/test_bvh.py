@@ -5,10 +5,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from loco_il.datasets.mocap import BVHParseError, canonical_keypoints, load_bvh
-from loco_il.datasets.mocap.bvh import CMU_BVH_NAME_MAP, UNIT_SCALES, detect_unit_scale
+from loco_il.motion.mocap import BVHParseError, canonical_keypoints, load_bvh
+from loco_il.motion.mocap.bvh import CMU_BVH_NAME_MAP, UNIT_SCALES, detect_unit_scale
 
-from loco_il.datasets.real import PACKAGED_MOCAP  # noqa: E402  (the clips shipped in the package)
+from loco_il.motion.mocap.clips import PACKAGED_MOCAP  # noqa: E402  (the clips shipped in the package)
 CMU_DIR = PACKAGED_MOCAP / "cmu_bvh"
 
 
@@ -302,7 +302,7 @@ def test_cmu_structure(cmu_walk):
 def test_cmu_metric_size_and_ground(cmu_walk):
     sk = cmu_walk.skeleton
     # Joint-span height (toe to head end site).  CMU end sites stop short of the crown,
-    # so this is below stature (see loco_il.datasets.mocap.bvh).
+    # so this is below stature (see loco_il.motion.mocap.bvh).
     assert 1.2 < sk.rest_height() < 2.0
     pos = cmu_walk.global_positions()
     kp = canonical_keypoints(cmu_walk)

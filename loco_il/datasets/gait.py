@@ -1,16 +1,16 @@
 """The quadrupeds' `real` datasets: state trajectories of the trot controller, recorded in the env.
 
 LocoMuJoCo's UnitreeA1 `real` data came from a model-predictive controller; loco_il records its own
-gait generator instead (`controller.TrotController`: CPG + foot trajectories + leg IK + PD/Raibert,
-run through the body's actuators at the env's timestep and substeps). Only states are kept
+gait generator instead (`loco_il.motion.gait.TrotController`: CPG + foot trajectories + leg IK +
+PD/Raibert, run through the body's actuators at the env's timestep and substeps). Only states are kept
 (``actions=None``), like every `real` dataset.
 
 Episode ``i`` uses the reset seed ``episode_seeds(seed, ...)[i]`` (the scheme of the `perfect` data):
 ``env.seed(s); env.reset()`` draws the task command (the walking direction of `hard`), and a
-generator seeded with ``s`` draws the episode's gait variation (gait frequency, swing height, body
-height, stance width, initial phase jitter), so episodes differ. The controller walks for
-``warmup`` seconds (start from standing, speed ramp, first part of the turn), then ``episode_steps``
-env steps (default: the task horizon) are recorded: ``obs`` / ``next_obs`` are exactly what the env
+generator seeded with ``s`` draws the episode's gait variation (`loco_il.motion.gait.GaitVariation`:
+gait frequency, swing height, body height, stance width, initial phase jitter), so episodes differ. The
+controller walks for ``warmup`` seconds (start from standing, speed ramp, first part of the turn), then
+``episode_steps`` env steps (default: the task horizon) are recorded: ``obs`` / ``next_obs`` are exactly what the env
 emits (`LocoEnv.set_sim_state`, full observations with the command features), rewards are the env's
 own reward, ``absorbing`` is always False.
 
@@ -20,22 +20,20 @@ and its direction within ``direction_tolerance_deg`` of the command. Rejected ep
 further seeds (up to ``max_attempts``). ``info["gait_quality"]`` holds the quality numbers: mean speed,
 direction and heading errors, foot slip during stance, trunk tilt, mean reward, fraction kept.
 
-The same controller is also the quadrupeds' `perfect` / `preference` expert (:mod:`.expert`,
-`TrotExpert`): there it acts as an env-level policy -- one normalized action per env step, computed
-from the state at the start of the step and held by the env over its substeps (the torques of the
+The same controller is also the quadrupeds' `perfect` / `preference` expert
+(`loco_il.experts.trot.TrotExpert`): there it acts as an env-level policy -- one normalized action per env
+step, computed from the state at the start of the step and held by the env over its substeps (the torques of the
 PD loop here, recomputed every substep, are not an env action) -- so those datasets have actions
 that replay exactly. That expert is a model-based controller, not an RL policy; its returns are in
 ``baselines.yaml``.
 
-Dispatch: `is_quadruped(env)` tells whether an env's `real` data comes from here;
+Dispatch: `loco_il.motion.gait.is_quadruped(env)` tells whether an env's `real` data comes from here;
 `quadruped_real_provider` has the provider signature (``provider(env, **kwargs)``, cached on disk like
 the `perfect` data); `real_dispatcher(other)` wraps another `real` provider (the humanoids' motion
 capture) so that quadrupeds come here.
 """
 from __future__ import annotations
 
-import hashlib
-import json
 import sys
 import time
 import warnings
@@ -46,8 +44,17 @@ from typing import Any, Callable, Mapping
 import mujoco
 import numpy as np
 
-from loco_il.datasets.gait.controller import ControllerParams, TrotController, wrap_angle
+from loco_il.datasets.providers.cache import (cache_key, datasets_cache_dir, init_states_path, regenerate_hint,
+                                              safe_name, save_to_cache)
+from loco_il.datasets.providers.expert import episode_seeds
+from loco_il.datasets.providers.init_states import InitStates
+from loco_il.datasets.providers.registry import ProviderUnavailableError
 from loco_il.datasets.trajectory import DatasetError, Trajectories
+from loco_il.environments.registry import make
+from loco_il.motion.gait.controller import ControllerParams, TrotController, wrap_angle
+from loco_il.motion.gait.quadruped import goal_speed, is_quadruped, model_fingerprint
+from loco_il.motion.gait.variation import GaitVariation
+from loco_il.utils.hashing import plain_json
 
 #: bump when the generator changes the data it produces (invalidates caches)
 GAIT_GENERATOR_VERSION = 1
@@ -55,42 +62,6 @@ DEFAULT_REAL_EPISODES = 50
 SOURCE = "loco_il gait generator (trot CPG + leg IK + PD/Raibert controller, simulated)"
 _DIVERGENCE_WARNINGS = (int(mujoco.mjtWarning.mjWARN_BADQPOS), int(mujoco.mjtWarning.mjWARN_BADQVEL),
                         int(mujoco.mjtWarning.mjWARN_BADQACC))
-
-
-def is_quadruped(env: Any) -> bool:
-    """True for an env, Body or Task-ID of the quadruped family (``body.family == "quadruped"``), whose
-    `real` data this module provides."""
-    if isinstance(env, str):
-        from loco_il.environments.registry import get_body, parse_task_id
-        env = get_body(parse_task_id(env).body)
-    body = getattr(env, "body", env)
-    return getattr(body, "family", None) == "quadruped"
-
-
-# ----------------------------------------------------------------------------- episode variation
-@dataclass(frozen=True)
-class GaitVariation:
-    """Ranges of the per-episode gait variation (uniform draws); all zero-width gives identical gaits."""
-
-    frequency: tuple[float, float] = (2.2, 2.8)          # Hz
-    swing_height: tuple[float, float] = (0.05, 0.09)     # m
-    height_offset: tuple[float, float] = (-0.015, 0.005)  # m, added to the standing height
-    stance_width: tuple[float, float] = (0.0, 0.02)      # m
-    phase_jitter: float = 0.05                           # cycles, initial phase perturbation
-
-    def draw(self, base: ControllerParams, rng: np.random.Generator,
-             standing_height: float) -> tuple[ControllerParams, float]:
-        p = ControllerParams(**{k: v for k, v in asdict(base).items() if k != "gait"})
-        p.gait = type(base.gait)(**asdict(base.gait))
-        p.gait.frequency = float(rng.uniform(*self.frequency))
-        p.gait.swing_height = float(rng.uniform(*self.swing_height))
-        if base.body_height is None:
-            p.body_height = standing_height + float(rng.uniform(*self.height_offset))
-        p.stance_width = base.stance_width + float(rng.uniform(*self.stance_width))
-        return p, self.phase_jitter
-
-
-NO_VARIATION = GaitVariation((2.5, 2.5), (0.07, 0.07), (0.0, 0.0), (0.0, 0.0), 0.0)
 
 
 # ----------------------------------------------------------------------------- one episode
@@ -236,15 +207,9 @@ def run_gait_episode(env: Any, seed: int, *, episode_steps: int | None = None, w
 
 
 # ----------------------------------------------------------------------------- dataset
-def _goal_speed(env: Any, default: float = 0.5) -> float:
-    speed = getattr(getattr(env, "task", None), "reward", None)
-    return float(getattr(speed, "speed", default))
-
-
 def _generation_env(env: Any, fresh: bool = False) -> Any:
     """``env`` itself when it emits plain full observations from its own start state (and not ``fresh``),
     else a new env of the same body, variant and task (default reward, no masks, no randomization)."""
-    from loco_il.environments.registry import make
     if isinstance(env, str):
         return make(env)
     plain = (bool(np.all(env.obs_mask)) and env.init_state_sampler is None and env.randomization is None)
@@ -252,11 +217,6 @@ def _generation_env(env: Any, fresh: bool = False) -> Any:
         return env
     key = f"{env.body_name}{'-' + env.variant if env.variant else ''}.{env.task_name}.{env.dataset_type}"
     return make(key)
-
-
-def _episode_seeds(seed: int, n: int) -> np.ndarray:
-    from loco_il.datasets.providers.expert import episode_seeds
-    return episode_seeds(seed, n)
 
 
 def keep_episode(ep: GaitEpisode, goal_speed: float, n_expected: int, speed_tolerance: float,
@@ -279,10 +239,10 @@ def generate_episodes(env: Any, n_episodes: int = DEFAULT_REAL_EPISODES, seed: i
     if not is_quadruped(env):
         raise ValueError(f"{getattr(env, 'task_id', env)} is not a quadruped; the gait generator walks quadrupeds")
     gen = _generation_env(env)
-    goal = _goal_speed(gen)
+    goal = goal_speed(gen)
     steps = int(episode_steps if episode_steps is not None else gen.info.horizon)
     max_attempts = int(max_attempts if max_attempts is not None else 2 * n_episodes + 5)
-    seeds = _episode_seeds(seed, max_attempts)
+    seeds = episode_seeds(seed, max_attempts)
     kept: list[GaitEpisode] = []
     rejected: list[dict[str, Any]] = []
     t0 = time.perf_counter()
@@ -367,40 +327,21 @@ def quadruped_real_dataset(env: Any, n_episodes: int = DEFAULT_REAL_EPISODES, se
     settings = {"n_episodes": int(n_episodes), "episode_steps": int(episode_steps or gen.info.horizon),
                 "warmup": float(warmup), "speed_tolerance": float(speed_tolerance),
                 "direction_tolerance_deg": float(direction_tolerance_deg),
-                "params": None if params is None else _jsonable(asdict(params)),
-                "variation": None if variation is None else _jsonable(asdict(variation))}
+                "params": None if params is None else plain_json(asdict(params)),
+                "variation": None if variation is None else plain_json(asdict(variation))}
     data = episodes_to_trajectories(gen, episodes, _base_info(gen, seed, summary, episodes, settings))
     if not return_init_states:
         return data
-    from loco_il.datasets.providers.expert import InitStates
     init = InitStates(np.array([e.qpos0 for e in episodes]), np.array([e.qvel0 for e in episodes]),
                       np.array([e.seed for e in episodes], dtype=np.int64))
     return data, init
 
 
-def _jsonable(obj: Any) -> Any:
-    return json.loads(json.dumps(obj, default=lambda o: o.tolist() if hasattr(o, "tolist") else str(o)))
-
-
 # ----------------------------------------------------------------------------- provider (cached)
-def _model_fingerprint(env: Any) -> str:
-    """Hash of what the generated motion depends on in the compiled model and the start state."""
-    m = env.model
-    h = hashlib.sha256()
-    for arr in (m.body_mass, m.body_pos, m.body_inertia, m.jnt_range, m.dof_damping, m.dof_armature,
-                m.dof_frictionloss, m.geom_size, m.geom_friction, m.actuator_gainprm, m.actuator_biasprm,
-                m.actuator_gear, m.actuator_ctrlrange, m.actuator_forcerange, np.array([m.opt.timestep]),
-                np.array([env.n_substeps]), env._init_qpos if hasattr(env, "_init_qpos") else m.qpos0):
-        h.update(np.ascontiguousarray(arr, dtype=np.float64).tobytes())
-    return h.hexdigest()[:16]
-
-
 def _cache_path(gen: Any, n_episodes: int, seed: int, fields: Mapping[str, Any]) -> Path:
-    from loco_il.datasets.providers.expert import datasets_cache_dir
     key = f"{gen.body_name}{'-' + gen.variant if gen.variant else ''}.{gen.task_name}"
-    digest = hashlib.sha256(json.dumps(dict(fields), sort_keys=True).encode()).hexdigest()[:16]
-    safe = "".join(c if c.isalnum() or c in "-_." else "_" for c in key)
-    return datasets_cache_dir() / safe / f"real-gait-n{int(n_episodes)}-seed{int(seed)}-{digest}.npz"
+    name = f"real-gait-n{int(n_episodes)}-seed{int(seed)}-{cache_key(fields)}.npz"
+    return datasets_cache_dir() / safe_name(key) / name
 
 
 def quadruped_real_provider(env: Any, *, n_episodes: int | None = None, generation_seed: int = 0,
@@ -411,7 +352,6 @@ def quadruped_real_provider(env: Any, *, n_episodes: int | None = None, generati
     Returns ``(Trajectories, InitStates)``. Extra ``kwargs`` go to `quadruped_real_dataset`
     (e.g. ``episode_steps``, ``warmup``, ``speed_tolerance``).
     """
-    from loco_il.datasets.providers.expert import InitStates, _regen_hint, init_states_path, save_to_cache
     allowed = {"episode_steps", "warmup", "params", "variation", "speed_tolerance", "direction_tolerance_deg",
                "max_attempts"}
     unknown = set(kwargs) - allowed
@@ -421,13 +361,13 @@ def quadruped_real_provider(env: Any, *, n_episodes: int | None = None, generati
     gen = _generation_env(env, fresh=True)     # the caller's env keeps its random stream and state
     n = DEFAULT_REAL_EPISODES if n_episodes is None else int(n_episodes)
     fields = {"generator": GAIT_GENERATOR_VERSION, "task": gen.task_id, "n_episodes": n,
-              "seed": int(generation_seed), "mujoco": mujoco.__version__, "model": _model_fingerprint(gen),
-              "kwargs": _jsonable({k: asdict(v) if hasattr(v, "__dataclass_fields__") else v
+              "seed": int(generation_seed), "mujoco": mujoco.__version__, "model": model_fingerprint(gen),
+              "kwargs": plain_json({k: asdict(v) if hasattr(v, "__dataclass_fields__") else v
                                    for k, v in sorted(kwargs.items())})}
     path = _cache_path(gen, n, generation_seed, fields)
     side = init_states_path(path)
     if not regenerate and path.exists() and side.exists():
-        hint = _regen_hint(path)
+        hint = regenerate_hint(path)
         data = Trajectories.load(path, regenerate_hint=hint,
                                  expect={"obs_names": list(gen.full_obs_spec.names), "dataset_type": "real",
                                          "act_dim": None})
@@ -455,13 +395,12 @@ def real_dispatcher(other: Callable[..., Any] | None) -> Callable[..., Any]:
         if is_quadruped(env):
             return quadruped_real_provider(env, **kwargs)
         if other is None:
-            from loco_il.datasets.providers.registry import ProviderUnavailableError
             raise ProviderUnavailableError(f"no `real` provider for {getattr(env, 'task_id', env)}")
         return other(env, **kwargs)
     provider.__qualname__ = "real_dispatcher.provider"
     return provider
 
 
-__all__ = ["DEFAULT_REAL_EPISODES", "GAIT_GENERATOR_VERSION", "GaitEpisode", "GaitVariation", "NO_VARIATION",
-           "episodes_to_trajectories", "generate_episodes", "is_quadruped", "keep_episode",
-           "quadruped_real_dataset", "quadruped_real_provider", "real_dispatcher", "run_gait_episode"]
+__all__ = ["DEFAULT_REAL_EPISODES", "GAIT_GENERATOR_VERSION", "GaitEpisode", "episodes_to_trajectories",
+           "generate_episodes", "keep_episode", "quadruped_real_dataset", "quadruped_real_provider", "real_dispatcher",
+           "run_gait_episode"]

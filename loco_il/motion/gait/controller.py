@@ -31,13 +31,13 @@ Each control step (the env's ``dt``, e.g. 10 ms) the controller
      (the offset adds the feed-forward and some damping the servos lack).
    ``tau_ff = J^T f`` is a gravity feed-forward: each stance foot pushes down with an equal share of
    the robot's weight.
-   As an env-level policy (`env_step_ctrl`, used by `expert.TrotExpert`) the controls are instead
+   As an env-level policy (`env_step_ctrl`, used by `loco_il.experts.trot.TrotExpert`) the controls are instead
    computed once per env step from the state at its start (`held_ctrl`) and held over the substeps
    by ``env.step``; the trot still walks that way (see the expert's docstring for the numbers).
 
 The simulation is driven directly through ``data.ctrl`` and ``mujoco.mj_step`` on the env's own
-model and data (same timestep, same substeps per env step); `provider.run_gait_episode` builds every
-observation with ``env.set_sim_state`` (the env's own observation function, command features
+model and data (same timestep, same substeps per env step); `loco_il.datasets.gait.run_gait_episode` builds
+every observation with ``env.set_sim_state`` (the env's own observation function, command features
 included) and the reward and termination with the env task's own functions.
 """
 from __future__ import annotations
@@ -47,8 +47,8 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
-from loco_il.datasets.gait.cpg import GaitParams, PhaseOscillators, TROT_OFFSETS, stance_velocity, swing_position
-from loco_il.datasets.gait.leg_ik import LegGeometry, leg_ik, leg_jacobian, quadruped_legs
+from loco_il.motion.gait.cpg import GaitParams, PhaseOscillators, TROT_OFFSETS, stance_velocity, swing_position
+from loco_il.motion.gait.leg_ik import LegGeometry, leg_ik, leg_jacobian, quadruped_legs
 
 GRAVITY = 9.81
 

@@ -1,7 +1,7 @@
 """The trot controller as an env-level expert: the quadrupeds' built-in `perfect` / `preference` experts.
 
 There are no RL-trained quadruped experts; `TrotExpert` makes the model-based trot controller
-(`controller.TrotController`: CPG + foot trajectories + leg IK + PD/Raibert) act like any policy:
+(`loco_il.motion.gait.TrotController`: CPG + foot trajectories + leg IK + PD/Raibert) act like any policy:
 one normalized action per env step, passed to ``env.step`` and held by the env over its substeps.
 Each step it reads the simulator state at the start of the step, advances the gait and computes
 the controls once (`TrotController.held_ctrl`):
@@ -12,13 +12,13 @@ the controls once (`TrotController.held_ctrl`):
 * position servos (Menagerie's Go1): the end-of-step joint targets plus the feed-forward / damping
   offset, normalized to the servos' control range (the action is the normalized target).
 
-This differs from the `real` provider, which runs the PD at the physics rate (its per-substep
-torques are no env action). Measured (10 episodes of ``simple``, 1000 steps, seeds
+This differs from the `real` provider (`loco_il.datasets.gait`), which runs the PD at the physics
+rate (its per-substep torques are no env action). Measured (10 episodes of ``simple``, 1000 steps, seeds
 ``episode_seeds(0, 10)``, mean velocity after the first second): A1 0 falls, 0.502 m/s, return
 748.8 +- 30.2; Go1 0 falls, 0.502 m/s, return 751.6 +- 22.0 (the speed ramp from standing over the
 first 0.5 s and the trot's velocity oscillation keep the reward ``exp(-5 |v - v_cmd|)`` below 1).
 
-Interface (the policy contract of :mod:`loco_il.datasets.providers.expert`): the rollout calls
+Interface (the policy contract of :mod:`loco_il.experts.files`): the rollout calls
 ``start_episode(env, seed)`` after every ``env.reset()``; the expert then follows that env's
 simulator state (``env.model`` / ``env.data``, which it only reads: it copies the state into a
 private ``MjData`` for its kinematics), so the recorded actions replay exactly. The controller has
@@ -26,9 +26,11 @@ internal state (oscillator phases, foot targets, velocity integral): the action 
 function of the episode's states so far, not of the current observation alone.
 
 Per-episode variation: as in the `real` data, a generator seeded with the episode's reset seed draws
-the episode's gait (`provider.GaitVariation`: frequency, swing height, body height, stance width,
-initial phase jitter), so the episodes of a dataset differ although ``simple`` always starts from the
-same state.
+the episode's gait (`loco_il.motion.gait.GaitVariation`: frequency, swing height, body height,
+stance width, initial phase jitter), so the episodes of a dataset differ although ``simple`` always
+starts from the same state.
+
+It registers as the built-in expert of `TROT_EXPERT_TASKS` (`loco_il.experts.registry`).
 
 Preference levels (`trot_levels`): the same expert with i.i.d. Gaussian noise of std ``sigma_k``
 added to the normalized action each step (before the env's clipping; the recorded action is the
@@ -53,9 +55,13 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from loco_il.datasets.gait.controller import ControllerParams, TrotController
 from loco_il.environments.base import action_map
-from loco_il.datasets.gait.provider import GaitVariation, _goal_speed, _jsonable, _model_fingerprint, is_quadruped
+from loco_il.environments.registry import task_key
+from loco_il.experts.registry import register_builtin_expert
+from loco_il.motion.gait.controller import ControllerParams, TrotController
+from loco_il.motion.gait.quadruped import goal_speed, is_quadruped, model_fingerprint
+from loco_il.motion.gait.variation import GaitVariation
+from loco_il.utils.hashing import plain_json
 
 #: bump when the expert's actions change for the same parameters (invalidates cached datasets)
 TROT_EXPERT_VERSION = 1
@@ -64,7 +70,7 @@ TROT_EXPERT_TASKS = ("UnitreeA1.simple", "UnitreeGo1.simple")
 #: largest action-noise std of the preference levels, per body (normalized action units)
 PREFERENCE_NOISE_MAX = {"UnitreeA1": 0.4, "UnitreeGo1": 0.2}
 PREFERENCE_LEVELS = 4
-SOURCE = "model-based trot controller (CPG + leg IK + PD/Raibert, loco_il.datasets.gait), not an RL policy"
+SOURCE = "model-based trot controller (CPG + leg IK + PD/Raibert, loco_il.motion.gait), not an RL policy"
 
 
 def _task_env(env_or_task: Any) -> tuple[Any, bool]:
@@ -93,16 +99,15 @@ class TrotExpert:
         try:
             if not is_quadruped(env):
                 raise ValueError(f"{env.task_id} is not a quadruped; the trot expert walks quadrupeds")
-            from loco_il.datasets.providers.expert import task_key
             self.task = task_key(env)
-            self.params = params or ControllerParams(speed=_goal_speed(env))
+            self.params = params or ControllerParams(speed=goal_speed(env))
             self.variation = variation
             self.action_noise = float(action_noise)
             if self.action_noise < 0:
                 raise ValueError(f"action_noise must be >= 0, got {action_noise}")
             self.obs_dim = int(env.full_obs_spec.dim)
             self.act_dim = int(env.model.nu)
-            self._fingerprint = _model_fingerprint(env)
+            self._fingerprint = model_fingerprint(env)
         finally:
             if made:
                 env.stop()
@@ -116,8 +121,8 @@ class TrotExpert:
 
     # ------------------------------------------------------------------ policy contract
     def checksum(self) -> str:
-        fields = {"version": TROT_EXPERT_VERSION, "task": self.task, "params": _jsonable(asdict(self.params)),
-                  "variation": None if self.variation is None else _jsonable(asdict(self.variation)),
+        fields = {"version": TROT_EXPERT_VERSION, "task": self.task, "params": plain_json(asdict(self.params)),
+                  "variation": None if self.variation is None else plain_json(asdict(self.variation)),
                   "action_noise": self.action_noise, "model": self._fingerprint}
         return hashlib.sha256(json.dumps(fields, sort_keys=True).encode()).hexdigest()
 
@@ -181,7 +186,6 @@ def trot_levels(env: Any, n_levels: int = PREFERENCE_LEVELS) -> list[TrotExpert]
 
 
 def _register() -> None:
-    from loco_il.datasets.providers.expert import register_builtin_expert
     for key in TROT_EXPERT_TASKS:
         register_builtin_expert(key, trot_expert, trot_levels, SOURCE, replace=True)
 

@@ -230,5 +230,5 @@ def get_robot_map(body_name: str) -> RobotMap:
         return ROBOT_MAPS[body_name]
     except KeyError:
         raise KeyError(f"no keypoint map for body {body_name!r}: retargeting needs a humanoid with a map in "
-                       f"loco_il/datasets/mocap/robot_maps.py; robots with a map: {', '.join(sorted(ROBOT_MAPS))}"
+                       f"loco_il/motion/mocap/robot_maps.py; robots with a map: {', '.join(sorted(ROBOT_MAPS))}"
                        ) from None

@@ -1,6 +1,6 @@
 """Skeletons, motion clips and quaternion helpers for motion-capture data.
 
-Conventions (shared by every loader in :mod:`loco_il.datasets.mocap`):
+Conventions (shared by every loader in :mod:`loco_il.motion.mocap`):
 
 * **World frame: Z up, X forward, Y left** (right-handed), the MuJoCo convention.
   Loaders convert Y-up sources with a proper rotation, so handedness is kept.

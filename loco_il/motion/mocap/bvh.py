@@ -59,6 +59,7 @@ from __future__ import annotations
 import os
 import re
 import warnings
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional, Union
 
@@ -307,10 +308,38 @@ def parse_bvh(text: str, where: str = "<bvh>", scale: Optional[float] = None,
               name_map=None, include_end_sites: bool = True,
               to_world: Optional[np.ndarray] = None) -> MotionClip:
     """Parse BVH text; see :func:`load_bvh` for the arguments."""
-    from scipy.spatial.transform import Rotation
-
     lines = text.splitlines()
-    # ---- locate sections
+    first, motion_line = _locate_sections(lines, where)
+    joints = _parse_hierarchy(_Tokens(lines, first + 1, motion_line, where))
+    n_frames, frame_time, header_end = _parse_motion_header(lines, motion_line, where)
+    data = _parse_frames(lines, header_end + 1, n_frames, sum(len(j["channels"]) for j in joints), where)
+
+    keep = [i for i, j in enumerate(joints) if include_end_sites or not j["site"]]
+    src_names, std_names, map_key = _joint_names(joints, keep, name_map, where)
+    motion = _map_channels(joints, keep, data)
+    skel_file = Skeleton(names=std_names, parents=motion.parents, offsets=motion.offsets,
+                         joint_types=motion.joint_types, channels=[joints[i]["channels"] for i in keep],
+                         rotation_orders=motion.rotation_orders, hinge_axes=motion.hinge_axes,
+                         source_names=src_names, is_site=[joints[i]["site"] for i in keep])
+    unit, scale, rest_height = _length_unit(joints, to_world, scale)
+
+    clip = MotionClip(skeleton=skel_file, fps=snap_fps(1.0 / frame_time), root_pos=motion.root_pos,
+                      root_quat=motion.joint_quats[:, 0], joint_quats=motion.joint_quats,
+                      joint_translations=motion.translations, name=Path(where).stem if where else "",
+                      meta=dict(format="bvh", source=str(where), unit=unit, scale=scale,
+                                rest_height_file_units=rest_height, frame_time=frame_time,
+                                name_map=map_key))
+    R = np.asarray(to_world if to_world is not None else BVH_TO_WORLD, dtype=float)
+    if R.shape != (3, 3) or not np.allclose(R @ R.T, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0:
+        raise ValueError("to_world must be a proper 3x3 rotation matrix")
+    return clip.scale(scale).rotated_to_world(quat_from_matrix(R))
+
+
+# ---------------------------------------------------------------------------- parsing steps
+
+
+def _locate_sections(lines: list, where: str) -> tuple:
+    """``(first, motion)``: indices of the ``HIERARCHY`` line and of the ``MOTION`` line."""
     first = 0
     while first < len(lines) and not lines[first].strip():
         first += 1
@@ -326,18 +355,19 @@ def parse_bvh(text: str, where: str = "<bvh>", scale: Optional[float] = None,
         raise BVHParseError(f"{where}:{len(lines)}: no MOTION section")
     if len(lines[first].split()) > 1 or len(lines[motion_line].split()) > 1:
         raise BVHParseError(f"{where}: 'HIERARCHY' and 'MOTION' must stand on their own lines")
+    return first, motion_line
 
-    joints = _parse_hierarchy(_Tokens(lines, first + 1, motion_line, where))
 
-    # ---- motion header
-    ln = motion_line + 1
+def _next_nonempty(lines: list, ln: int) -> int:
+    while ln < len(lines) and not lines[ln].strip():
+        ln += 1
+    return ln
 
-    def next_nonempty(ln: int) -> int:
-        while ln < len(lines) and not lines[ln].strip():
-            ln += 1
-        return ln
 
-    ln = next_nonempty(ln)
+def _parse_motion_header(lines: list, motion_line: int, where: str) -> tuple:
+    """``(n_frames, frame_time, line)`` from ``Frames: N`` and ``Frame Time: dt``; ``line`` is the index of
+    the ``Frame Time`` line (the frames follow it)."""
+    ln = _next_nonempty(lines, motion_line + 1)
     m = re.match(r"^\s*Frames\s*:\s*(\S+)\s*$", lines[ln] if ln < len(lines) else "", re.IGNORECASE)
     if not m:
         raise BVHParseError(f"{where}:{ln + 1}: expected 'Frames: <count>'")
@@ -347,7 +377,7 @@ def parse_bvh(text: str, where: str = "<bvh>", scale: Optional[float] = None,
         raise BVHParseError(f"{where}:{ln + 1}: frame count {m.group(1)!r} is not an integer") from None
     if n_frames <= 0:
         raise BVHParseError(f"{where}:{ln + 1}: frame count must be positive, got {n_frames}")
-    ln = next_nonempty(ln + 1)
+    ln = _next_nonempty(lines, ln + 1)
     m = re.match(r"^\s*Frame\s+Time\s*:\s*(\S+)\s*$", lines[ln] if ln < len(lines) else "",
                  re.IGNORECASE)
     if not m:
@@ -358,12 +388,14 @@ def parse_bvh(text: str, where: str = "<bvh>", scale: Optional[float] = None,
         raise BVHParseError(f"{where}:{ln + 1}: frame time {m.group(1)!r} is not a number") from None
     if not np.isfinite(frame_time) or frame_time <= 0:
         raise BVHParseError(f"{where}:{ln + 1}: frame time must be positive, got {frame_time}")
+    return n_frames, frame_time, ln
 
-    # ---- motion data
-    n_chan = sum(len(j["channels"]) for j in joints)
+
+def _parse_frames(lines: list, start: int, n_frames: int, n_chan: int, where: str) -> np.ndarray:
+    """The ``(n_frames, n_chan)`` channel values of the frame lines from index ``start`` on."""
     data = np.empty((n_frames, n_chan))
     row = 0
-    for ln in range(ln + 1, len(lines)):
+    for ln in range(start, len(lines)):
         s = lines[ln].split()
         if not s:
             continue
@@ -385,10 +417,12 @@ def parse_bvh(text: str, where: str = "<bvh>", scale: Optional[float] = None,
     if not np.all(np.isfinite(data)):
         bad_row = int(np.nonzero(~np.all(np.isfinite(data), axis=1))[0][0])
         raise BVHParseError(f"{where}: frame {bad_row} holds non-finite values")
+    return data
 
-    # ---- keep / drop sites, build index maps
-    keep = [i for i, j in enumerate(joints) if include_end_sites or not j["site"]]
-    new_index = {old: new for new, old in enumerate(keep)}
+
+def _joint_names(joints: list, keep: list, name_map, where: str) -> tuple:
+    """``(source names, standard names, name map used)`` of the kept joints; end sites are
+    ``<parent>_End`` / ``<parent standard name>_end``."""
     src_names = []
     for i in keep:
         j = joints[i]
@@ -409,9 +443,30 @@ def parse_bvh(text: str, where: str = "<bvh>", scale: Optional[float] = None,
             std_names.append(mapping.get(j["name"], j["name"]))
     if len(set(std_names)) != len(std_names):  # a map produced a clash: fall back to source names
         std_names, map_key = list(src_names), None
+    return src_names, std_names, map_key
 
-    J = len(keep)
-    T = n_frames
+
+@dataclass
+class _ChannelMotion:
+    """The frames' channels turned into the kept joints' motion and the skeleton's joint description."""
+
+    parents: np.ndarray                  # (J,) int, -1 for the root
+    offsets: np.ndarray                  # (J, 3) rest offsets from the parent (file units)
+    root_pos: np.ndarray                 # (T, 3)
+    joint_quats: np.ndarray              # (T, J, 4) w-first local rotations
+    translations: Optional[np.ndarray]   # (T, J, 3) when a non-root joint has position channels, else None
+    joint_types: list                    # free / fixed / hinge / ball
+    rotation_orders: list                # Euler order per joint ("ZXY", ...) or None
+    hinge_axes: np.ndarray               # (J, 3) axis of the hinge joints
+
+
+def _map_channels(joints: list, keep: list, data: np.ndarray) -> _ChannelMotion:
+    """Each kept joint's channel columns: positions replace the offset, rotations compose intrinsically in the
+    order listed (see the module docstring)."""
+    from scipy.spatial.transform import Rotation
+
+    new_index = {old: new for new, old in enumerate(keep)}
+    J, T = len(keep), len(data)
     parents = np.array([-1 if joints[i]["parent"] < 0 else new_index[joints[i]["parent"]]
                         for i in keep], dtype=np.int64)
     offsets = np.array([joints[i]["offset"] for i in keep], dtype=float)
@@ -458,13 +513,12 @@ def parse_bvh(text: str, where: str = "<bvh>", scale: Optional[float] = None,
             hinge_axes[new, _AXIS[rot_axes[0]]] = 1.0
         else:
             joint_types.append("ball")
+    return _ChannelMotion(parents, offsets, root_pos, jq, translations, joint_types, rot_orders, hinge_axes)
 
-    # ---- units
-    skel_file = Skeleton(names=std_names, parents=parents, offsets=offsets, joint_types=joint_types,
-                         channels=[joints[i]["channels"] for i in keep], rotation_orders=rot_orders,
-                         hinge_axes=hinge_axes, source_names=src_names,
-                         is_site=[joints[i]["site"] for i in keep])
-    # rest-pose height along the file's up axis (measured with the sites, whatever include_end_sites)
+
+def _length_unit(joints: list, to_world: Optional[np.ndarray], scale: Optional[float]) -> tuple:
+    """``(unit, metres per file unit, rest height in file units)``: the given scale, or the unit detected from
+    the rest-pose height along the file's up axis (measured with the sites, whatever include_end_sites)."""
     rest = _rest_positions(joints)
     up = np.asarray(to_world if to_world is not None else BVH_TO_WORLD, dtype=float)[2]
     rest_height = float(np.ptp(rest @ up))
@@ -475,17 +529,7 @@ def parse_bvh(text: str, where: str = "<bvh>", scale: Optional[float] = None,
         scale = float(scale)
         if not np.isfinite(scale) or scale <= 0:
             raise ValueError(f"scale must be positive, got {scale}")
-
-    clip = MotionClip(skeleton=skel_file, fps=snap_fps(1.0 / frame_time), root_pos=root_pos,
-                      root_quat=jq[:, 0], joint_quats=jq, joint_translations=translations,
-                      name=Path(where).stem if where else "",
-                      meta=dict(format="bvh", source=str(where), unit=unit, scale=scale,
-                                rest_height_file_units=rest_height, frame_time=frame_time,
-                                name_map=map_key))
-    R = np.asarray(to_world if to_world is not None else BVH_TO_WORLD, dtype=float)
-    if R.shape != (3, 3) or not np.allclose(R @ R.T, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0:
-        raise ValueError("to_world must be a proper 3x3 rotation matrix")
-    return clip.scale(scale).rotated_to_world(quat_from_matrix(R))
+    return unit, scale, rest_height
 
 
 def _rest_positions(joints: list) -> np.ndarray:
