@@ -1,6 +1,6 @@
 """The reference motion a tracking expert follows: one cycle of the task's retargeted motion capture, looped.
 
-`build_reference(env)` retargets the task's cyclic clip (the first clip of `loco_il.datasets.real.TASK_CLIPS`,
+`build_reference(env)` retargets the task's cyclic clip (the first clip of `loco_il.motion.mocap.clips.TASK_CLIPS`,
 e.g. DeepMimic's `humanoid3d_walk` for `walk`) to the env's robot with the solver and options of the `real`
 datasets, three cycles long, and keeps the middle cycle (the seams of the repeated clip are cross-faded, so the
 middle cycle starts and ends in the same pose, shifted by one stride). The cycle is resampled at `samples`
