@@ -24,6 +24,7 @@ from typing import Any, Mapping
 from loco_il.algorithms.common.agent_base import ALGORITHMS, ILAgent
 from loco_il.algorithms.common.agent_base import get_algorithm as _get_registered
 from loco_il.algorithms.common.networks import GaussianPolicy
+from loco_il.utils.plain import to_plain
 
 #: default training budget when an algorithm config gives none
 DEFAULT_ENV_STEPS = 1_000_000
@@ -45,18 +46,6 @@ def get_algorithm(name: str) -> type[ILAgent]:
     """`agent_base.get_algorithm` after importing every algorithm module."""
     import_all()
     return _get_registered(name)
-
-
-def _plain(cfg: Any) -> dict:
-    if cfg is None:
-        return {}
-    try:
-        from omegaconf import DictConfig, OmegaConf
-        if isinstance(cfg, DictConfig):
-            return OmegaConf.to_container(cfg, resolve=True)
-    except ImportError:  # pragma: no cover - omegaconf comes with hydra
-        pass
-    return dict(cfg)
 
 
 def is_offpolicy(cls: type[ILAgent]) -> bool:
@@ -130,7 +119,7 @@ def _check_params(cls: type[ILAgent], params: Mapping[str, Any]) -> None:
 def build_agent(name: str | None, env_info: Any, cfg: Mapping[str, Any], *, seed: int | None = None,
                 device: str = "cpu") -> ILAgent:
     """Build the agent described by an algorithm config (see the module docstring)."""
-    cfg = _plain(cfg)
+    cfg = {} if cfg is None else to_plain(cfg)
     name = name or cfg.get("name")
     cls = get_algorithm(name)
     obs_dim = int(env_info.observation_space.shape[0])

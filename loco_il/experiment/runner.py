@@ -38,7 +38,9 @@ from loco_il.experiment.checkpoint import (CHECKPOINT_NAME, CheckpointError, con
                                            load_checkpoint, load_run_checkpoint, restore, save_checkpoint)
 from loco_il.experiment.lock import RunDirLockedError, run_dir_lock
 from loco_il.experiment.logging import RunLogger, Stopwatch
+from loco_il.utils.fileio import write_json
 from loco_il.utils.hashing import ChecksumMismatchError, verify_sidecar, write_sidecar
+from loco_il.utils.plain import to_plain
 from loco_il.utils.signals import stop_requests
 
 RUN_FILES = ("checkpoint.pt", "checkpoint.prev.pt", "checkpoint.pt.damaged", "checkpoint.json", "final_agent.pt",
@@ -101,16 +103,6 @@ class ExperimentConfigError(ValueError):
     """A config that cannot run (unknown algorithm or Task-ID, algorithm/dataset mismatch): one-line message."""
 
 
-def _plain(cfg: Any) -> dict:
-    try:
-        from omegaconf import DictConfig, OmegaConf
-        if isinstance(cfg, DictConfig):
-            return OmegaConf.to_container(cfg, resolve=True, throw_on_missing=True)
-    except ImportError:  # pragma: no cover
-        pass
-    return dict(cfg)
-
-
 def seed_everything(seed: int) -> None:
     import random
     random.seed(seed)
@@ -149,33 +141,6 @@ def apply_per_algo(cfg: dict, cli_overrides: Sequence[str] = ()) -> dict:
     return out
 
 
-# ----------------------------------------------------------------------------- datasets
-def dataset_kwargs(dcfg: Mapping[str, Any]) -> dict[str, Any]:
-    """Keyword arguments of `create_dataset` (besides env and split) from the config's `dataset` group."""
-    kwargs = {k: dcfg[k] for k in ("n_episodes", "expert_path", "workers") if dcfg.get(k) is not None}
-    if dcfg.get("regenerate"):   # generate again and replace the cached copy
-        kwargs["regenerate"] = True
-    kwargs.update({k: v for k, v in (dcfg.get("provider_kwargs") or {}).items()})
-    return dict(n_trajectories=dcfg.get("n_trajectories"), portion=tuple(dcfg.get("portion") or (0.0, 0.75)),
-                seed=int(dcfg.get("split_seed", 0)), generation_seed=int(dcfg.get("generation_seed", 0)),
-                verbose=bool(dcfg.get("verbose", True)), **kwargs)
-
-
-def load_datasets(env: Any, dcfg: Mapping[str, Any]):
-    """(train, test) expert data of `env`'s Task-ID; test is None when the split leaves no test episodes."""
-    from loco_il.datasets import create_dataset
-    common = dataset_kwargs(dcfg)
-    train = create_dataset(env, split="train", **common)
-    portion = common["portion"]
-    test = None
-    if portion[1] - portion[0] < 1.0:
-        try:   # the train split's call already regenerated the pool (or kept it in memory): not again
-            test = create_dataset(env, split="test", **{**common, "verbose": False, "regenerate": False})
-        except Exception:  # noqa: BLE001 - a pool too small for a test split: similarity uses train
-            test = None
-    return train, test
-
-
 INIT_STATES = ("default", "dataset")
 
 
@@ -194,6 +159,7 @@ def training_start_sampler(env: Any, init_state: str, dcfg: Mapping[str, Any], t
     stay comparable with runs that start there.
     """
     from loco_il.datasets import create_dataset
+    from loco_il.datasets.loading import dataset_kwargs
     from loco_il.datasets.providers import dataset_init_state_sampler
     if check_init_state(init_state) == "default":
         return None
@@ -211,7 +177,7 @@ def dataset_type_of(task_id: str) -> str:
 # ----------------------------------------------------------------------------- the run
 class Runner:
     def __init__(self, cfg: Any, run_dir: str | Path, cli_overrides: Sequence[str] = ()):
-        self.cfg = apply_per_algo(_plain(cfg), cli_overrides)
+        self.cfg = apply_per_algo(to_plain(cfg), cli_overrides)
         self.run_dir = Path(run_dir)
         self.run_dir.mkdir(parents=True, exist_ok=True)
         c = self.cfg
@@ -326,6 +292,7 @@ class Runner:
     def _run(self, stop) -> dict:
         from loco_il.algorithms import factory
         from loco_il.algorithms.factory import get_algorithm
+        from loco_il.datasets.loading import load_datasets
         from loco_il.environments.registry import make
 
         c = self.cfg
@@ -538,8 +505,7 @@ class Runner:
 
     def _final(self, agent, eval_env, counters: dict, wall: float) -> dict:
         from loco_il.datasets.providers.expert import task_key
-        from loco_il.evaluation import (evaluate_agent, evaluate_averaged_actor, normalized, trajectory_similarity,
-                                        write_json)
+        from loco_il.evaluation import evaluate_agent, evaluate_averaged_actor, normalized, trajectory_similarity
         ev = self.eval_cfg
         sim_on = bool(ev.get("similarity", True))
         eval_args = (int(ev.get("final_episodes", 10)), int(ev.get("seed", 1000)), bool(ev.get("deterministic", True)))
@@ -611,7 +577,7 @@ def run_job(cfg: Any, run_dir: str | Path, cli_overrides: Sequence[str] = (), ca
     outcome, so the other jobs still run and the summary names it."""
     from loco_il.datasets.trajectory import DatasetError
     from loco_il.experiment.config_schema import ConfigValueError, validate_config
-    plain = _plain_loose(cfg)
+    plain = to_plain(cfg, loose=True)   # for the outcome's labels, also of a config that does not resolve
     outcome = JobOutcome(0, task_id=str(plain.get("task_id", "?")), name=str(plain.get("name", "?")),
                          seed=plain.get("seed", "?"))
 
@@ -637,21 +603,10 @@ def run_job(cfg: Any, run_dir: str | Path, cli_overrides: Sequence[str] = (), ca
     return outcome
 
 
-def _plain_loose(cfg: Any) -> dict:
-    """The config as a dict for naming a job, whatever state it is in (unresolvable values become '?')."""
-    try:
-        return _plain(cfg)
-    except Exception:  # noqa: BLE001 - only used for labels
-        try:
-            return {k: cfg.get(k) for k in ("task_id", "name", "seed")}
-        except Exception:  # noqa: BLE001
-            return {}
-
-
 def main_with_exit_codes(cfg: Any, run_dir: str | Path, cli_overrides: Sequence[str] = ()) -> int:
     """`run_job`'s exit status."""
     return run_job(cfg, run_dir, cli_overrides).code
 
 
-__all__ = ["run", "Runner", "load_datasets", "StopRequested", "StoppedBySignal", "ExperimentConfigError",
+__all__ = ["run", "Runner", "StopRequested", "StoppedBySignal", "ExperimentConfigError",
            "STOPPED_EXIT_CODE", "SIGNAL_EXIT_CODE", "main_with_exit_codes", "run_job", "JobOutcome"]
