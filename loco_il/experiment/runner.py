@@ -2,8 +2,8 @@
 
 `run(cfg, run_dir)` with the composed config of `experiment_configs/config.yaml`:
 
-1. checks that the algorithm can learn from the Task-ID's dataset type (`check_dataset_type`), before
-   anything slow happens;
+1. checks that the algorithm exists, takes the config's parameters and can learn from the Task-ID's dataset
+   type (`check_dataset_type`), before anything slow happens;
 2. locks the run dir for this process (`lock.py`: a second process on it is refused) and resumes from
    `<run_dir>/checkpoint.pt` when there is one (`resume: auto`, the default, or `true`), verified against the
    sha256 in `checkpoint.json` (`checkpoint.py`); a finished run only prints its evaluation; a run dir whose
@@ -300,6 +300,7 @@ class Runner:
         try:   # fail before anything slow
             cls = get_algorithm(self.algo_cfg["name"])
             cls.check_dataset_type(dataset_type_of(self.task_id))
+            factory.agent_kwargs(cls, self.algo_cfg)
             init_state = check_init_state(str(c.get("init_state") or "default"))
             keep_above = keep_threshold(c.get("keep_checkpoints_above"))
         except (KeyError, ValueError) as exc:
