@@ -10,20 +10,24 @@ Every algorithm config has the same shape (the keys the experiment runner reads)
       n_steps_per_fit: 1
       n_env_steps: 1000000     # default training budget (env steps)
     pretrain_steps: 100000     # offline algorithms only (BC): default budget in gradient steps
-    params: {...}              # keyword arguments of the agent's constructor
+    params: {...}              # keyword arguments of the agent's constructor; for the SAC-based agents also
+                               # the ablations (common/ablations.py), flat keys gathered into one `Ablations`
 
 The policy is tanh-squashed for the SAC-based agents (IQ-Learn, LS-IQ, SQIL: `OffPolicyILAgent`) and
 unsquashed with a state-independent log-std for the others (BC, GAIL, VAIL, GAIfO), as their constructors
-expect. Unknown constructor keywords fail here, naming the keyword and the agent's accepted ones.
+expect. Unknown constructor keywords fail here, naming the keyword and the agent's accepted ones
+(`agent_kwargs`, which the experiment runner also calls before anything slow).
 """
 from __future__ import annotations
 
 import inspect
 from typing import Any, Mapping
 
+from loco_il.algorithms.common.ablations import ABLATION_NAMES, split_ablations
 from loco_il.algorithms.common.agent_base import ALGORITHMS, ILAgent
 from loco_il.algorithms.common.agent_base import get_algorithm as _get_registered
 from loco_il.algorithms.common.networks import GaussianPolicy
+from loco_il.utils.plain import to_plain
 
 #: default training budget when an algorithm config gives none
 DEFAULT_ENV_STEPS = 1_000_000
@@ -45,18 +49,6 @@ def get_algorithm(name: str) -> type[ILAgent]:
     """`agent_base.get_algorithm` after importing every algorithm module."""
     import_all()
     return _get_registered(name)
-
-
-def _plain(cfg: Any) -> dict:
-    if cfg is None:
-        return {}
-    try:
-        from omegaconf import DictConfig, OmegaConf
-        if isinstance(cfg, DictConfig):
-            return OmegaConf.to_container(cfg, resolve=True)
-    except ImportError:  # pragma: no cover - omegaconf comes with hydra
-        pass
-    return dict(cfg)
 
 
 def is_offpolicy(cls: type[ILAgent]) -> bool:
@@ -107,7 +99,9 @@ def build_policy(cls: type[ILAgent], obs_dim: int, act_dim: int, policy_cfg: Map
     return GaussianPolicy(obs_dim, act_dim, hidden=hidden, squash=squash, init_log_std=init_log_std, **extra)
 
 
-def _check_params(cls: type[ILAgent], params: Mapping[str, Any]) -> None:
+def _constructor_params(cls: type[ILAgent]) -> tuple[set[str], bool]:
+    """The keyword names `cls`'s constructors take along the MRO (down to the first without **kwargs), and whether
+    that chain still ends in **kwargs (then any name passes)."""
     accepted: set[str] = set()
     open_kwargs = False
     for klass in cls.__mro__:
@@ -121,27 +115,42 @@ def _check_params(cls: type[ILAgent], params: Mapping[str, Any]) -> None:
         open_kwargs = True
         if klass is ILAgent:
             break
+    return accepted - {"self", "mdp_info", "policy_module", "device", "seed"}, open_kwargs
+
+
+def agent_kwargs(cls: type[ILAgent], cfg: Mapping[str, Any]) -> dict[str, Any]:
+    """The keyword arguments of `cls`'s constructor from an algorithm config's `params`: YAML lists as tuples (for
+    Sequence arguments), and for an agent that takes `ablations` (the SAC-based ones) the flat ablation keys
+    gathered into one `Ablations`. ValueError (one line) for a key the constructor does not take or an ablation
+    value out of range."""
+    params = dict(cfg.get("params") or {})
+    for key, value in params.items():  # YAML lists -> tuples for Sequence arguments
+        if isinstance(value, list):
+            params[key] = tuple(value)
+    accepted, open_kwargs = _constructor_params(cls)
+    takes_ablations = "ablations" in accepted
+    if takes_ablations:   # configs give the ablations as flat keys, not as one `ablations` mapping
+        accepted = (accepted - {"ablations"}) | set(ABLATION_NAMES)
     unknown = sorted(set(params) - accepted)
     if unknown and not open_kwargs:
-        accepted -= {"self", "mdp_info", "policy_module", "device", "seed"}
         raise ValueError(f"{cls.pretty_name()} has no parameter(s) {unknown}; accepted: {sorted(accepted)}")
+    if takes_ablations:
+        ablations, params = split_ablations(params)
+        params["ablations"] = ablations
+    return params
 
 
 def build_agent(name: str | None, env_info: Any, cfg: Mapping[str, Any], *, seed: int | None = None,
                 device: str = "cpu") -> ILAgent:
     """Build the agent described by an algorithm config (see the module docstring)."""
-    cfg = _plain(cfg)
+    cfg = {} if cfg is None else to_plain(cfg)
     name = name or cfg.get("name")
     cls = get_algorithm(name)
     obs_dim = int(env_info.observation_space.shape[0])
     act_dim = int(env_info.action_space.shape[0])
     policy = build_policy(cls, obs_dim, act_dim, cfg.get("policy") or {})
-    params = dict(cfg.get("params") or {})
-    for key, value in params.items():  # YAML lists -> tuples for Sequence arguments
-        if isinstance(value, list):
-            params[key] = tuple(value)
-    _check_params(cls, params)
-    return cls(env_info, policy, device=device, seed=seed, **params)
+    return cls(env_info, policy, device=device, seed=seed, **agent_kwargs(cls, cfg))
 
 
-__all__ = ["build_agent", "get_algorithm", "import_all", "build_policy", "default_budget", "steps_per_fit", "is_offline", "is_offpolicy"]
+__all__ = ["build_agent", "agent_kwargs", "get_algorithm", "import_all", "build_policy", "default_budget",
+           "steps_per_fit", "is_offline", "is_offpolicy"]

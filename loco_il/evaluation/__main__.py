@@ -81,9 +81,9 @@ def _reexec_with_gl_backend(argv: list[str]) -> None:
 def main(argv: list[str] | None = None) -> int:
     import torch
     torch.set_num_threads(1)
-    from loco_il.evaluation import RunFileError, evaluate_run, format_eval_table, record_run, write_json
+    from loco_il.evaluation import RunFileError, evaluate_run, format_eval_table, record_run
     from loco_il.experiment.checkpoint import CheckpointError
-    from loco_il.experiment.logging import _jsonable
+    from loco_il.utils.fileio import jsonable, write_json
     try:
         command, args = parse_args(list(sys.argv[1:] if argv is None else argv))
         if command == "record":
@@ -107,7 +107,7 @@ def main(argv: list[str] | None = None) -> int:
     print(format_eval_table([res]))
     if res.get("similarity_note"):
         print(f"Note: {res['similarity_note']}")
-    print(json.dumps(_jsonable(res)))
+    print(json.dumps(jsonable(res)))
     if "out" in args:
         write_json(args["out"], res)
     return 0

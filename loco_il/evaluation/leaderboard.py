@@ -169,7 +169,7 @@ def plot_curves(rows: Sequence[Mapping[str, Any]], out_dir: str | Path) -> list[
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from loco_il.experiment.logging import read_csv
+    from loco_il.utils.fileio import read_csv
     out_dir = Path(out_dir)
     by_task: dict[tuple[str, str], list[Mapping[str, Any]]] = {}
     for r in rows:

@@ -31,7 +31,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 from loco_il.experiment.checkpoint import read_checkpoint_summary
-from loco_il.experiment.logging import read_csv
+from loco_il.utils.fileio import read_csv
 
 HEADER = ("task", "algorithm", "seed", "last eval step", "budget", "done %", "return", "normalized",
           "steps/s", "rest (h)", "resumes from", "state")

@@ -23,7 +23,6 @@ from __future__ import annotations
 import csv
 import io
 import json
-import math
 import os
 import sys
 import time
@@ -31,29 +30,13 @@ from pathlib import Path
 from typing import IO, Any, Mapping
 
 from loco_il.utils.atomic import atomic_open
+from loco_il.utils.fileio import jsonable
 
 CSV_COLUMNS = ("step", "env_steps", "updates", "episodes", "wall_time", "steps_per_s", "train_return",
                "eval_return_mean", "eval_return_std", "eval_episodes",
                "eval_terminated",   # evaluation episodes that ended in a terminal state (a fall) before the horizon
                "normalized_score",
                "normalized_score_ema")   # the actor's moving average (agents with actor_ema; else empty)
-
-
-def _jsonable(value: Any) -> Any:
-    if hasattr(value, "item") and callable(value.item):
-        try:
-            value = value.item()
-        except (ValueError, RuntimeError):
-            return str(value)
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    if isinstance(value, (str, int, float, bool)) or value is None:
-        return value
-    if isinstance(value, Mapping):
-        return {str(k): _jsonable(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_jsonable(v) for v in value]
-    return str(value)
 
 
 def read_jsonl(path: str | os.PathLike) -> list[dict]:
@@ -81,18 +64,6 @@ def _write_csv_rows(fh: IO[str], rows: list[Mapping[str, Any]], *, header: bool)
         writer.writeheader()
     for row in rows:
         writer.writerow({k: ("" if row.get(k) is None else row.get(k)) for k in CSV_COLUMNS})
-
-
-def read_csv(path: str | os.PathLike) -> list[dict]:
-    """The rows of a `log.csv` as dicts of floats (empty cells -> None)."""
-    path = Path(path)
-    if not path.is_file():
-        return []
-    out = []
-    with open(path, newline="") as fh:
-        for row in csv.DictReader(fh):
-            out.append({k: (float(v) if v not in ("", None) else None) for k, v in row.items()})
-    return out
 
 
 class RunLogger:
@@ -130,7 +101,7 @@ class RunLogger:
         os.environ.setdefault("WANDB_SILENT", "true")
         kwargs = dict(project=wandb_cfg.get("project") or "loco_il", entity=wandb_cfg.get("entity") or None,
                       group=wandb_cfg.get("group") or None, tags=list(wandb_cfg.get("tags") or []) or None,
-                      name=run_name, dir=str(self.run_dir), mode=mode, config=_jsonable(dict(cfg or {})),
+                      name=run_name, dir=str(self.run_dir), mode=mode, config=jsonable(dict(cfg or {})),
                       id=self.wandb_id, resume="allow" if self.wandb_id else None, reinit=True)
         try:
             self._wandb = wandb.init(**{k: v for k, v in kwargs.items() if v is not None})
@@ -143,7 +114,7 @@ class RunLogger:
 
     # ------------------------------------------------------------------ rows
     def log(self, row: Mapping[str, Any]) -> dict:
-        row = {k: _jsonable(v) for k, v in row.items()}
+        row = {k: jsonable(v) for k, v in row.items()}
         with open(self.jsonl_path, "a") as fh:
             fh.write(json.dumps(row) + "\n")
             fh.flush()
@@ -219,4 +190,4 @@ class Stopwatch:
         return self.offset + time.perf_counter() - self._start
 
 
-__all__ = ["RunLogger", "Stopwatch", "CSV_COLUMNS", "read_jsonl", "read_csv"]
+__all__ = ["RunLogger", "Stopwatch", "CSV_COLUMNS", "read_jsonl"]

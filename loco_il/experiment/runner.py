@@ -1,25 +1,26 @@
 """The training loop behind `train.py`: env + dataset + agent, chunked training, evaluation, checkpoints.
 
-`run(cfg, run_dir)` with the composed config of `experiment_configs/config.yaml`:
+`run(cfg, run_dir)` with the composed config of `experiment_configs/config.yaml` (`Runner`, one method a step):
 
-1. checks that the algorithm can learn from the Task-ID's dataset type (`check_dataset_type`), before
-   anything slow happens;
+1. checks that the algorithm exists, takes the config's parameters and can learn from the Task-ID's dataset
+   type (`check_dataset_type`), before anything slow happens (`_check_config`);
 2. locks the run dir for this process (`lock.py`: a second process on it is refused) and resumes from
    `<run_dir>/checkpoint.pt` when there is one (`resume: auto`, the default, or `true`), verified against the
    sha256 in `checkpoint.json` (`checkpoint.py`); a finished run only prints its evaluation; a run dir whose
-   checkpoint has a different config is refused;
+   checkpoint has a different config is refused (`_prepare_dir`, `_fork`);
 3. builds the training env, the expert dataset (its `train` split; the `test` split is kept for the
-   trajectory-similarity metrics) and the agent (`loco_il.algorithms.factory.build_agent`);
+   trajectory-similarity metrics) and the agent (`loco_il.algorithms.factory.build_agent`) (`_setup`), then
+   loads the checkpoint's state into them (`_restore`);
 4. trains in chunks: online agents through mushroom-rl's `Core.learn(n_steps=chunk, n_steps_per_fit=...)`,
    offline ones (BC) through `agent.pretrain(chunk)`; after each chunk it evaluates (every `eval.every`
-   steps), logs, and checkpoints (every `checkpoint_every` steps);
+   steps), logs, and checkpoints (every `checkpoint_every` steps) (`_loop`);
 5. ends with a final evaluation (`eval.final_episodes` episodes + trajectory similarity), `final_agent.pt`,
-   `eval.json`, and prints the result table.
+   `eval.json` (`_finish`), and prints the result table.
 
 Steps are env steps for online agents and gradient steps for offline ones (BC). A chunk never straddles an
 evaluation or checkpoint point; evaluation and checkpoint intervals are rounded up to multiples of
-`n_steps_per_fit`, so no collected transition is dropped (unless the budget itself is not a multiple).
-`Core.learn` resets the env at the start of every chunk.
+`n_steps_per_fit`, so no collected transition is dropped (unless the budget itself is not a multiple)
+(`Schedule`). `Core.learn` resets the env at the start of every chunk.
 """
 from __future__ import annotations
 
@@ -38,8 +39,10 @@ from loco_il.experiment.checkpoint import (CHECKPOINT_NAME, CheckpointError, con
                                            load_checkpoint, load_run_checkpoint, restore, save_checkpoint)
 from loco_il.experiment.lock import RunDirLockedError, run_dir_lock
 from loco_il.experiment.logging import RunLogger, Stopwatch
+from loco_il.utils.fileio import write_json
 from loco_il.utils.hashing import ChecksumMismatchError, verify_sidecar, write_sidecar
-from loco_il.utils.signals import stop_requests
+from loco_il.utils.plain import to_plain
+from loco_il.utils.signals import StopFlag, stop_requests
 
 RUN_FILES = ("checkpoint.pt", "checkpoint.prev.pt", "checkpoint.pt.damaged", "checkpoint.json", "final_agent.pt",
              "final_agent.pt.sha256", "eval.json", "log.csv", "log.jsonl")
@@ -101,16 +104,6 @@ class ExperimentConfigError(ValueError):
     """A config that cannot run (unknown algorithm or Task-ID, algorithm/dataset mismatch): one-line message."""
 
 
-def _plain(cfg: Any) -> dict:
-    try:
-        from omegaconf import DictConfig, OmegaConf
-        if isinstance(cfg, DictConfig):
-            return OmegaConf.to_container(cfg, resolve=True, throw_on_missing=True)
-    except ImportError:  # pragma: no cover
-        pass
-    return dict(cfg)
-
-
 def seed_everything(seed: int) -> None:
     import random
     random.seed(seed)
@@ -149,33 +142,7 @@ def apply_per_algo(cfg: dict, cli_overrides: Sequence[str] = ()) -> dict:
     return out
 
 
-# ----------------------------------------------------------------------------- datasets
-def dataset_kwargs(dcfg: Mapping[str, Any]) -> dict[str, Any]:
-    """Keyword arguments of `create_dataset` (besides env and split) from the config's `dataset` group."""
-    kwargs = {k: dcfg[k] for k in ("n_episodes", "expert_path", "workers") if dcfg.get(k) is not None}
-    if dcfg.get("regenerate"):   # generate again and replace the cached copy
-        kwargs["regenerate"] = True
-    kwargs.update({k: v for k, v in (dcfg.get("provider_kwargs") or {}).items()})
-    return dict(n_trajectories=dcfg.get("n_trajectories"), portion=tuple(dcfg.get("portion") or (0.0, 0.75)),
-                seed=int(dcfg.get("split_seed", 0)), generation_seed=int(dcfg.get("generation_seed", 0)),
-                verbose=bool(dcfg.get("verbose", True)), **kwargs)
-
-
-def load_datasets(env: Any, dcfg: Mapping[str, Any]):
-    """(train, test) expert data of `env`'s Task-ID; test is None when the split leaves no test episodes."""
-    from loco_il.datasets import create_dataset
-    common = dataset_kwargs(dcfg)
-    train = create_dataset(env, split="train", **common)
-    portion = common["portion"]
-    test = None
-    if portion[1] - portion[0] < 1.0:
-        try:   # the train split's call already regenerated the pool (or kept it in memory): not again
-            test = create_dataset(env, split="test", **{**common, "verbose": False, "regenerate": False})
-        except Exception:  # noqa: BLE001 - a pool too small for a test split: similarity uses train
-            test = None
-    return train, test
-
-
+# ----------------------------------------------------------------------------- training starts
 INIT_STATES = ("default", "dataset")
 
 
@@ -194,6 +161,7 @@ def training_start_sampler(env: Any, init_state: str, dcfg: Mapping[str, Any], t
     stay comparable with runs that start there.
     """
     from loco_il.datasets import create_dataset
+    from loco_il.datasets.loading import dataset_kwargs
     from loco_il.datasets.providers import dataset_init_state_sampler
     if check_init_state(init_state) == "default":
         return None
@@ -209,9 +177,33 @@ def dataset_type_of(task_id: str) -> str:
 
 
 # ----------------------------------------------------------------------------- the run
+@dataclass(frozen=True)
+class Schedule:
+    """When a run evaluates and checkpoints, in steps (env steps online, gradient steps offline)."""
+    budget: int
+    eval_every: int
+    checkpoint_every: int
+    unit: int   # n_steps_per_fit (online) or 1 (offline): the intervals are multiples of it
+
+    def next_chunk(self, step: int) -> int:
+        """Steps from `step` to the next evaluation point, checkpoint point or the end, whichever comes first."""
+        next_eval = (step // self.eval_every + 1) * self.eval_every
+        next_ckpt = (step // self.checkpoint_every + 1) * self.checkpoint_every
+        return min(next_eval, next_ckpt, self.budget) - step
+
+    def evaluates_at(self, step: int) -> bool:
+        return step % self.eval_every == 0 or step == self.budget
+
+    def checkpoints_at(self, step: int) -> bool:
+        return step % self.checkpoint_every == 0 or step == self.budget
+
+
 class Runner:
+    """One run of `train.py` in its run dir: `run()` checks the config, then resumes or sets the run up (`_setup`,
+    `_restore`), trains in chunks (`_loop`) and scores the result (`_finish`)."""
+
     def __init__(self, cfg: Any, run_dir: str | Path, cli_overrides: Sequence[str] = ()):
-        self.cfg = apply_per_algo(_plain(cfg), cli_overrides)
+        self.cfg = apply_per_algo(to_plain(cfg), cli_overrides)
         self.run_dir = Path(run_dir)
         self.run_dir.mkdir(parents=True, exist_ok=True)
         c = self.cfg
@@ -232,9 +224,11 @@ class Runner:
             return int(entry["n_steps"])
         return factory.default_budget(self.algo_cfg)
 
-    def _intervals(self, budget: int) -> tuple[int, int, int]:
-        """(eval every, checkpoint every, unit): unit = n_steps_per_fit (online) or 1 (offline)."""
+    def _schedule(self) -> Schedule:
+        """The budget and the evaluation and checkpoint intervals, rounded up to multiples of the unit
+        (n_steps_per_fit online, 1 offline) so that no collected transition is dropped."""
         from loco_il.algorithms import factory
+        budget = self.budget()
         unit = 1 if self.offline else factory.steps_per_fit(self.algo_cfg)
         every = self.eval_cfg.get("every")
         if not every:   # the algorithm's epoch (LocoMuJoCo evaluates once per epoch), at least 10 per run
@@ -242,7 +236,7 @@ class Runner:
             every = min(int(epoch), max(1, budget // 10)) if epoch else max(1, budget // 10)
         ckpt = self.cfg.get("checkpoint_every") or every
         round_up = lambda n: max(unit, int(math.ceil(int(n) / unit)) * unit)  # noqa: E731
-        return round_up(every), round_up(ckpt), unit
+        return Schedule(budget, round_up(every), round_up(ckpt), unit)
 
     # ------------------------------------------------------------------ resume
     def _prepare_dir(self) -> dict | None:
@@ -323,67 +317,103 @@ class Runner:
         with run_dir_lock(self.run_dir), stop_requests(note) as stop:
             return self._run(stop)
 
-    def _run(self, stop) -> dict:
-        from loco_il.algorithms import factory
-        from loco_il.algorithms.factory import get_algorithm
-        from loco_il.environments.registry import make
+    def _run(self, stop: StopFlag) -> dict:
+        """The steps of the module docstring, in order; the envs and the logger are closed however the loop ends."""
+        torch.set_num_threads(int(self.cfg.get("torch_threads") or 1))
+        self._check_config()
+        ckpt = self._prepare_dir()
+        finished = self._finished_result(ckpt)
+        if finished is not None:
+            return finished
+        self._write_config()
+        self._setup()
+        self._restore(ckpt)
+        self._open_log(ckpt)
+        self.clock = Stopwatch(self.wall_before)   # run time so far, carried over from the checkpoint
+        try:
+            self._loop(stop)
+            result = self._finish()
+        finally:
+            self.logger.close()
+            self.env.stop()
+            self.eval_env.stop()
+        self._save_checkpoint(finished=True)
+        self._print_table(result)
+        return result
 
+    def _check_config(self) -> None:
+        """Fail before anything slow: the algorithm and its parameters, the Task-ID's dataset type, `init_state`
+        and `keep_checkpoints_above`."""
+        from loco_il.algorithms import factory
         c = self.cfg
-        torch.set_num_threads(int(c.get("torch_threads") or 1))
-        try:   # fail before anything slow
-            cls = get_algorithm(self.algo_cfg["name"])
+        try:
+            cls = factory.get_algorithm(self.algo_cfg["name"])
             cls.check_dataset_type(dataset_type_of(self.task_id))
-            init_state = check_init_state(str(c.get("init_state") or "default"))
-            keep_above = keep_threshold(c.get("keep_checkpoints_above"))
+            factory.agent_kwargs(cls, self.algo_cfg)
+            self.init_state = check_init_state(str(c.get("init_state") or "default"))
+            self.keep_above = keep_threshold(c.get("keep_checkpoints_above"))
         except (KeyError, ValueError) as exc:
             raise ExperimentConfigError(str(exc.args[0]) if exc.args else str(exc)) from exc
         self.offline = factory.is_offline(cls, self.algo_cfg)
 
-        ckpt = self._prepare_dir()
-        if (ckpt is not None and ckpt.get("finished") and (self.run_dir / "eval.json").is_file()
+    def _finished_result(self, ckpt: dict | None) -> dict | None:
+        """The final evaluation of a run that already finished its budget (printed again), else None."""
+        if not (ckpt is not None and ckpt.get("finished") and (self.run_dir / "eval.json").is_file()
                 and int(ckpt["counters"]["step"]) >= self.budget()):   # a larger n_steps trains on
-            import json
-            result = json.loads((self.run_dir / "eval.json").read_text())
-            print(f"[loco_il] {self.run_dir} already finished ({result.get('steps')} steps); final evaluation:")
-            self._print_table(result)
-            return result
-        self._write_config()
+            return None
+        import json
+        result = json.loads((self.run_dir / "eval.json").read_text())
+        print(f"[loco_il] {self.run_dir} already finished ({result.get('steps')} steps); final evaluation:")
+        self._print_table(result)
+        return result
 
+    def _setup(self) -> None:
+        """The training and evaluation envs, the expert data (train and test splits), the agent and the schedule."""
+        from loco_il.algorithms import factory
+        from loco_il.datasets.loading import load_datasets
+        from loco_il.environments.registry import make
+        c = self.cfg
         seed_everything(self.seed)
-        env = make(self.task_id, seed=self.seed)
-        eval_env = make(self.task_id, seed=self.seed + 1)
-        train, test = load_datasets(env, c.get("dataset") or {})
-        self.train_data, self.test_data = train, test
-        env.init_state_sampler = training_start_sampler(env, init_state, c.get("dataset") or {}, train)
+        self.env = make(self.task_id, seed=self.seed)
+        self.eval_env = make(self.task_id, seed=self.seed + 1)
+        self.train_data, self.test_data = load_datasets(self.env, c.get("dataset") or {})
+        self.env.init_state_sampler = training_start_sampler(self.env, self.init_state, c.get("dataset") or {},
+                                                             self.train_data)
         seed_everything(self.seed)   # the same initial weights whether the dataset was generated or cached
-        agent = factory.build_agent(self.algo_cfg["name"], env.info, self.algo_cfg, seed=self.seed,
-                                    device=str(c.get("device") or "cpu"))
-        agent.set_expert(train)
+        self.agent = factory.build_agent(self.algo_cfg["name"], self.env.info, self.algo_cfg, seed=self.seed,
+                                         device=str(c.get("device") or "cpu"))
+        self.agent.set_expert(self.train_data)
+        self.schedule = self._schedule()
 
-        budget = self.budget()
-        eval_every, ckpt_every, unit = self._intervals(budget)
-        counters = {"step": 0, "env_steps": 0, "episodes": 0, "n_evals": 0}
-        wall = 0.0
-        wandb_id = None
-        window: dict[str, list] = {"returns": []}   # training returns since the last evaluation
-        if ckpt is not None:
-            try:
-                restore(ckpt, agent=agent, env=env)
-            except RuntimeError as exc:   # load_state_dict: missing / unexpected keys, other shapes
-                if not ckpt.get("forked"):
-                    raise
-                raise CheckpointError(f"fork_from={c['fork_from']}: its agent state does not fit this config's "
-                                      f"networks ({str(exc).splitlines()[0]} ...); a fork may change learning "
-                                      "settings, not network sizes or the number of critics") from exc
-            counters.update(ckpt["counters"])
-            wall, wandb_id = float(ckpt.get("wall_time", 0.0)), ckpt.get("wandb_id")
-            window["returns"] = list((ckpt.get("extra") or {}).get("train_returns", []))
-        step = int(counters["step"])
+    def _restore(self, ckpt: dict | None) -> None:
+        """Counters, run time, W&B id and the training returns since the last evaluation: fresh, or those of `ckpt`
+        (a resume or a fork), whose agent and env state are loaded too."""
+        self.counters = {"step": 0, "env_steps": 0, "episodes": 0, "n_evals": 0}
+        self.wall_before, self.wandb_id = 0.0, None
+        self.window: dict[str, list] = {"returns": []}   # training returns since the last evaluation
+        if ckpt is None:
+            return
+        try:
+            restore(ckpt, agent=self.agent, env=self.env)
+        except RuntimeError as exc:   # load_state_dict: missing / unexpected keys, other shapes
+            if not ckpt.get("forked"):
+                raise
+            raise CheckpointError(f"fork_from={self.cfg['fork_from']}: its agent state does not fit this config's "
+                                  f"networks ({str(exc).splitlines()[0]} ...); a fork may change learning "
+                                  "settings, not network sizes or the number of critics") from exc
+        self.counters.update(ckpt["counters"])
+        self.wall_before, self.wandb_id = float(ckpt.get("wall_time", 0.0)), ckpt.get("wandb_id")
+        self.window["returns"] = list((ckpt.get("extra") or {}).get("train_returns", []))
 
-        logger = RunLogger(self.run_dir, c, wandb_cfg=self.log_cfg.get("wandb"),
-                           progress=self.log_cfg.get("progress", "auto"), total=budget, initial=step,
-                           wandb_id=wandb_id, run_name=f"{self.name}/{self.task_id}/seed{self.seed}",
-                           unit="update" if self.offline else "step")
+    def _open_log(self, ckpt: dict | None) -> None:
+        """The run's logger (log files, W&B, progress bar), its rows past the checkpoint dropped, and the run's
+        opening lines."""
+        c, step, budget = self.cfg, int(self.counters["step"]), self.schedule.budget
+        train = self.train_data
+        self.logger = logger = RunLogger(
+            self.run_dir, c, wandb_cfg=self.log_cfg.get("wandb"), progress=self.log_cfg.get("progress", "auto"),
+            total=budget, initial=step, wandb_id=self.wandb_id, run_name=f"{self.name}/{self.task_id}/seed{self.seed}",
+            unit="update" if self.offline else "step")
         if ckpt is not None:
             logger.truncate(step)
             logger.write(f"[loco_il] {'forked from ' + str(c['fork_from']) if ckpt.get('forked') else 'resuming'} "
@@ -391,79 +421,75 @@ class Runner:
         logger.write(f"[loco_il] {self.name} on {self.task_id} (seed {self.seed}): {budget} "
                      f"{'gradient' if self.offline else 'env'} steps, {train.n_trajectories} expert episodes "
                      f"({train.n_transitions} transitions); run dir {self.run_dir}")
-        if env.init_state_sampler is not None:
+        if self.env.init_state_sampler is not None:
             logger.write("[loco_il] training episodes start from states of the expert train split (init_state=dataset)")
-        self.agent, self.env, self.eval_env, self.logger = agent, env, eval_env, logger
-        clock = Stopwatch(wall)
-        stop_after = c.get("stop_after_steps")
 
-        def checkpoint(finished: bool = False) -> None:
-            save_checkpoint(self.run_dir / CHECKPOINT_NAME, agent=agent, env=env, counters=counters,
-                            wall_time=clock(), config=c, wandb_id=logger.wandb_id, finished=finished,
-                            extra=None if finished else {"train_returns": window["returns"]},
-                            include_replay=bool(c.get("checkpoint_replay", True)))
+    def _save_checkpoint(self, finished: bool = False) -> None:
+        c = self.cfg
+        save_checkpoint(self.run_dir / CHECKPOINT_NAME, agent=self.agent, env=self.env, counters=self.counters,
+                        wall_time=self.clock(), config=c, wandb_id=self.logger.wandb_id, finished=finished,
+                        extra=None if finished else {"train_returns": self.window["returns"]},
+                        include_replay=bool(c.get("checkpoint_replay", True)))
 
+    def _loop(self, stop: StopFlag) -> None:
+        """Train chunk by chunk up to the budget; after each chunk, evaluate, checkpoint, keep a copy and stop when
+        due. A chunk never straddles an evaluation or checkpoint point."""
+        schedule, counters = self.schedule, self.counters
+        core = None if self.offline else self._make_core(stop)
+        step = int(counters["step"])
+        last_t, last_step = self.clock(), step
+        while step < schedule.budget:
+            done, fit_info = self._train_chunk(core, schedule.next_chunk(step), stop)
+            step += done
+            counters["step"] = step
+            if not self.offline:
+                counters["env_steps"] += done
+            row = None
+            # done == 0: a signal during the setup stopped an offline run before its first step; nothing to evaluate
+            if done and schedule.evaluates_at(step):
+                now = self.clock()
+                row = self._evaluate_row(now, (step - last_step) / max(now - last_t, 1e-9), fit_info)
+                last_t, last_step = self.clock(), step   # steps/s without the evaluation's time
+                self._log_evaluation(row)
+            score = None if row is None else row.get("normalized_score")   # None on tasks without baselines
+            keep = self.keep_above is not None and score is not None and score >= self.keep_above
+            # a stop signal ends the chunk at the next fit and checkpoints there: within seconds
+            # instead of up to a whole interval later (a scheduler's SIGTERM grace is often short)
+            if schedule.checkpoints_at(step) or stop.signal is not None or keep:
+                self._save_checkpoint()
+            if keep:
+                path = keep_copy(self.run_dir, step)
+                self.logger.write(f"[loco_il] normalized score {score:.3f} >= {self.keep_above}: "
+                                  f"checkpoint kept as {path} (fork_from={path} branches from it)")
+            self._stop_if_asked(stop, step)
+
+    def _log_evaluation(self, row: dict) -> None:
         from loco_il.evaluation import identical_episodes_note
-        try:
-            core = None if self.offline else self._make_core(window, counters, stop)
-            last_t, last_step = clock(), step
-            while step < budget:
-                keep = False
-                nxt_eval = (step // eval_every + 1) * eval_every
-                nxt_ckpt = (step // ckpt_every + 1) * ckpt_every
-                n = min(nxt_eval, nxt_ckpt, budget) - step
-                done, fit_info = self._train_chunk(agent, core, n, unit, stop)
-                step += done
-                counters["step"] = step
-                if not self.offline:
-                    counters["env_steps"] += done
-                # done == 0: a signal during the setup stopped an offline run before its first step; nothing to evaluate
-                if done and (step % eval_every == 0 or step == budget):
-                    now = clock()
-                    row = self._evaluate_row(counters, now, (step - last_step) / max(now - last_t, 1e-9),
-                                             window, fit_info)
-                    last_t, last_step = clock(), step   # steps/s without the evaluation's time
-                    counters["n_evals"] += 1
-                    logger.log(row)
-                    score = row.get("normalized_score")   # None on tasks without baselines: nothing kept
-                    keep = keep_above is not None and score is not None and score >= keep_above
-                    logger.write(f"[loco_il] step {step}: eval return {row['eval_return_mean']:.2f} ± "
-                                 f"{row['eval_return_std']:.2f}" + (f", normalized {row['normalized_score']:.3f}"
-                                                                    if row.get("normalized_score") is not None
-                                                                    else "")
-                                 + (f", actor average {row['normalized_score_ema']:.3f}"
-                                    if row.get("normalized_score_ema") is not None else "")
-                                 + (" (all episodes identical)" if identical_episodes_note(
-                                     {"episodes": row["eval_episodes"],
-                                      "distinct_episodes": row["eval_distinct_episodes"]}) else ""))
-                # a stop signal ends the chunk at the next fit and checkpoints there: within seconds
-                # instead of up to a whole interval later (a scheduler's SIGTERM grace is often short)
-                if step % ckpt_every == 0 or step == budget or stop.signal is not None or keep:
-                    checkpoint()
-                if keep:
-                    path = keep_copy(self.run_dir, step)
-                    logger.write(f"[loco_il] normalized score {row['normalized_score']:.3f} >= {keep_above}: "
-                                 f"checkpoint kept as {path} (fork_from={path} branches from it)")
-                if stop.signal is not None and step < budget:
-                    raise StoppedBySignal(f"stopped by {stop.signal} at step {step}/{budget}, checkpoint "
-                                          f"saved (re-run the same command to resume)")
-                if stop_after is not None and step >= int(stop_after) and step < budget:
-                    raise StopRequested(f"stop_after_steps={stop_after}: stopped at step {step}/{budget} "
-                                        f"(re-run the same command to resume)")
-            result = self._final(agent, eval_env, counters, clock())
-        finally:
-            logger.close()
-            env.stop()
-            eval_env.stop()
-        checkpoint(finished=True)
-        self._print_table(result)
-        return result
+        self.counters["n_evals"] += 1
+        self.logger.log(row)
+        score, ema = row.get("normalized_score"), row.get("normalized_score_ema")
+        identical = identical_episodes_note({"episodes": row["eval_episodes"],
+                                             "distinct_episodes": row["eval_distinct_episodes"]})
+        self.logger.write(f"[loco_il] step {row['step']}: eval return {row['eval_return_mean']:.2f} ± "
+                          f"{row['eval_return_std']:.2f}" + (f", normalized {score:.3f}" if score is not None else "")
+                          + (f", actor average {ema:.3f}" if ema is not None else "")
+                          + (" (all episodes identical)" if identical else ""))
+
+    def _stop_if_asked(self, stop: StopFlag, step: int) -> None:
+        """End the run like a killed one when a stop signal arrived or `stop_after_steps` is reached."""
+        budget, stop_after = self.schedule.budget, self.cfg.get("stop_after_steps")
+        if stop.signal is not None and step < budget:
+            raise StoppedBySignal(f"stopped by {stop.signal} at step {step}/{budget}, checkpoint "
+                                  f"saved (re-run the same command to resume)")
+        if stop_after is not None and step >= int(stop_after) and step < budget:
+            raise StopRequested(f"stop_after_steps={stop_after}: stopped at step {step}/{budget} "
+                                f"(re-run the same command to resume)")
 
     # ------------------------------------------------------------------ pieces
-    def _make_core(self, window: dict, counters: dict, stop):
+    def _make_core(self, stop: StopFlag):
         from mushroom_rl.core import Core
         state = {"ret": 0.0, "steps": 0}
-        logger = self.logger
+        logger, window, counters = self.logger, self.window, self.counters
 
         def on_step(samples):
             for s in samples:
@@ -487,9 +513,10 @@ class Runner:
         self._on_step, self._step_state = on_step, state
         return core
 
-    def _train_chunk(self, agent, core, n: int, unit: int, stop) -> tuple[int, dict]:
+    def _train_chunk(self, core, n: int, stop: StopFlag) -> tuple[int, dict]:
         """Train for `n` steps, or fewer when a stop signal arrives (then up to the next fit);
         returns (steps done, the last fit's info)."""
+        agent = self.agent
         if self.offline:
             done, loss = 0, None
             while done < n and stop.signal is None:
@@ -501,7 +528,7 @@ class Runner:
         self._step_state["ret"] = 0.0            # Core.learn starts a fresh episode
         self._step_state["steps"] = 0
         try:
-            core.learn(n_steps=n, n_steps_per_fit=unit, quiet=True)
+            core.learn(n_steps=n, n_steps_per_fit=self.schedule.unit, quiet=True)
             done = n
         except _StopAtFit:
             done = self._step_state["steps"]
@@ -510,9 +537,9 @@ class Runner:
         info = getattr(agent, "last_fit_info", None) or getattr(agent, "last_info", None) or {}
         return done, dict(info)
 
-    def _evaluate_row(self, counters: dict, wall: float, sps: float, window: dict, fit_info: dict) -> dict:
+    def _evaluate_row(self, wall: float, sps: float, fit_info: dict) -> dict:
         from loco_il.evaluation import evaluate_agent, evaluate_averaged_actor, normalized
-        ev = self.eval_cfg
+        ev, counters = self.eval_cfg, self.counters
         eval_args = (int(ev.get("episodes", 5)), int(ev.get("seed", 1000)), bool(ev.get("deterministic", True)))
         res = evaluate_agent(self.agent, self.eval_env, *eval_args)
         ema = evaluate_averaged_actor(self.agent, self.eval_env, *eval_args)
@@ -520,7 +547,7 @@ class Runner:
         updates = getattr(self.agent, "n_updates", None)
         if updates is None:
             updates = getattr(self.agent, "n_fits", None)
-        returns = window["returns"]
+        returns = self.window["returns"]
         row = {"step": counters["step"], "env_steps": counters["env_steps"], "updates": updates,
                "episodes": counters["episodes"], "wall_time": round(wall, 3), "steps_per_s": round(sps, 2),
                "train_return": float(np.mean(returns)) if returns else None,
@@ -532,14 +559,15 @@ class Runner:
             row.update({"eval_ema_return_mean": ema["return_mean"], "eval_ema_length_mean": ema["length_mean"],
                         "normalized_score_ema": normalized(self.task_id, ema["return_mean"])[0]})
         row.update({f"fit/{k}": v for k, v in fit_info.items()})
-        window["returns"] = []
+        self.window["returns"] = []
         self.logger.progress(0, eval_return=res["return_mean"], steps_per_s=sps)
         return row
 
-    def _final(self, agent, eval_env, counters: dict, wall: float) -> dict:
+    def _finish(self) -> dict:
+        """The final evaluation (with trajectory similarity), `final_agent.pt` and `eval.json`."""
         from loco_il.environments.registry import task_key
-        from loco_il.evaluation import (evaluate_agent, evaluate_averaged_actor, normalized, trajectory_similarity,
-                                        write_json)
+        from loco_il.evaluation import evaluate_agent, evaluate_averaged_actor, normalized, trajectory_similarity
+        agent, eval_env, counters, wall = self.agent, self.eval_env, self.counters, self.clock()
         ev = self.eval_cfg
         sim_on = bool(ev.get("similarity", True))
         eval_args = (int(ev.get("final_episodes", 10)), int(ev.get("seed", 1000)), bool(ev.get("deterministic", True)))
@@ -611,7 +639,7 @@ def run_job(cfg: Any, run_dir: str | Path, cli_overrides: Sequence[str] = (), ca
     outcome, so the other jobs still run and the summary names it."""
     from loco_il.datasets.trajectory import DatasetError
     from loco_il.experiment.config_schema import ConfigValueError, validate_config
-    plain = _plain_loose(cfg)
+    plain = to_plain(cfg, loose=True)   # for the outcome's labels, also of a config that does not resolve
     outcome = JobOutcome(0, task_id=str(plain.get("task_id", "?")), name=str(plain.get("name", "?")),
                          seed=plain.get("seed", "?"))
 
@@ -637,21 +665,10 @@ def run_job(cfg: Any, run_dir: str | Path, cli_overrides: Sequence[str] = (), ca
     return outcome
 
 
-def _plain_loose(cfg: Any) -> dict:
-    """The config as a dict for naming a job, whatever state it is in (unresolvable values become '?')."""
-    try:
-        return _plain(cfg)
-    except Exception:  # noqa: BLE001 - only used for labels
-        try:
-            return {k: cfg.get(k) for k in ("task_id", "name", "seed")}
-        except Exception:  # noqa: BLE001
-            return {}
-
-
 def main_with_exit_codes(cfg: Any, run_dir: str | Path, cli_overrides: Sequence[str] = ()) -> int:
     """`run_job`'s exit status."""
     return run_job(cfg, run_dir, cli_overrides).code
 
 
-__all__ = ["run", "Runner", "load_datasets", "StopRequested", "StoppedBySignal", "ExperimentConfigError",
+__all__ = ["run", "Runner", "Schedule", "StopRequested", "StoppedBySignal", "ExperimentConfigError",
            "STOPPED_EXIT_CODE", "SIGNAL_EXIT_CODE", "main_with_exit_codes", "run_job", "JobOutcome"]

@@ -30,6 +30,7 @@ from torch import nn
 
 from loco_il.algorithms.common.networks import GaussianPolicy
 from loco_il.utils.atomic import atomic_torch_save
+from loco_il.utils.plain import to_plain
 
 FORMAT = "loco_il.expert/v1"
 ACTIVATIONS: dict[str, type[nn.Module]] = {"tanh": nn.Tanh, "relu": nn.ReLU, "elu": nn.ELU}
@@ -130,7 +131,7 @@ class ExpertPolicy:
         meta = dict(self.metadata)
         meta.update(obs_dim=self.obs_dim, act_dim=self.act_dim, hidden=list(self.hidden),
                     activation=self.activation, obs_clip=self.obs_clip, obs_eps=self.obs_eps, squash=self.squash)
-        return {"format": FORMAT, "metadata": _plain(meta), "state_dict": self.state_dict()}
+        return {"format": FORMAT, "metadata": to_plain(meta), "state_dict": self.state_dict()}
 
     def save(self, path: str | os.PathLike) -> str:
         """Write the expert atomically; returns its checksum."""
@@ -170,18 +171,3 @@ def load_expert(path: str | os.PathLike) -> Any:
     if stored is not None and stored != expert.checksum():
         raise ValueError(f"{path}: checksum mismatch (file says {stored}, weights hash to {expert.checksum()})")
     return expert
-
-
-def _plain(obj: Any) -> Any:
-    """Metadata as plain Python (numbers, strings, lists, dicts) so `weights_only` loading accepts it."""
-    if isinstance(obj, Mapping):
-        return {str(k): _plain(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_plain(v) for v in obj]
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    if obj is None or isinstance(obj, (bool, int, float, str)):
-        return obj
-    return str(obj)

@@ -1,6 +1,7 @@
 """Unit tests of the off-policy IL losses and of the SAC / agent machinery, on hand-computed numbers."""
 from __future__ import annotations
 
+import dataclasses
 from types import SimpleNamespace
 
 import numpy as np
@@ -10,6 +11,7 @@ from mushroom_rl.core import MDPInfo
 from mushroom_rl.utils.spaces import Box
 from torch import nn
 
+from loco_il.algorithms.common.ablations import Ablations
 from loco_il.algorithms.common.agent_base import ALGORITHMS, get_algorithm
 from loco_il.algorithms.common.networks import EnsembleQ, GaussianPolicy
 from loco_il.algorithms.common.replay import TransitionBuffer
@@ -425,7 +427,7 @@ def test_layer_norm_critic_bounds_extrapolation():
 
 @pytest.mark.parametrize("cls", [IQLearn, LSIQ, SQIL])
 def test_layer_norm_critic_trains_and_survives_save_and_load(cls, tmp_path):
-    agent = _agent(cls, critic_layer_norm=True)
+    agent = _agent(cls, ablations=Ablations(critic_layer_norm=True))
     ln_before = agent.sac.critic.q1[1].weight.clone()
     agent.fit(_dataset())                      # 64 transitions >= initial_replay_size: one update each
     assert agent.n_updates == 64
@@ -565,13 +567,16 @@ def test_cuda_graph_updates_compute_what_the_eager_updates_compute(cls, tmp_path
     assert not cls.load(path, device="cpu").cuda_graph      # read on the CPU: the same updates, eager
 
 
+LAYER_NORM = Ablations(critic_layer_norm=True)
+
+
 @pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA device")
 @pytest.mark.parametrize("cls, kw", [
-    (LSIQ, {"objective": "mixture", "n_critics": 2, "critic_layer_norm": True}),  # the README's Hopper setting
-    (LSIQ, {"critic_layer_norm": True}),
-    (IQLearn, {"critic_layer_norm": True}),
-    (LSIQfO, {"critic_layer_norm": True, "n_critics": 2}),
-    (SQIL, {"critic_layer_norm": True}),
+    (LSIQ, {"objective": "mixture", "n_critics": 2, "ablations": LAYER_NORM}),  # the README's Hopper setting
+    (LSIQ, {"ablations": LAYER_NORM}),
+    (IQLearn, {"ablations": LAYER_NORM}),
+    (LSIQfO, {"ablations": LAYER_NORM, "n_critics": 2}),
+    (SQIL, {"ablations": LAYER_NORM}),
 ])
 def test_cuda_graph_matches_eager_with_the_layer_norm_and_twin_critics(cls, kw):
     graphed = _graphed_and_eager_agree(cls, **kw)
@@ -746,12 +751,12 @@ def test_frozen_replay_keeps_updating_on_the_stored_transitions():
     agent.fit(_dataset(n=40))
     stored = agent.replay.state_dict()
     updates = agent.n_updates
-    agent.freeze_replay = True                  # as a fork with freeze_replay=true
+    agent.ablations = dataclasses.replace(agent.ablations, freeze_replay=True)   # as a fork with freeze_replay=true
     agent.fit(_dataset(n=10, seed=3))
     assert agent.n_updates == updates + 10 and agent.n_transitions == 50
     for key, value in agent.replay.state_dict().items():   # nothing new stored
         assert np.array_equal(np.asarray(value), np.asarray(stored[key])), key
-    empty = _agent(SQIL, freeze_replay=True)
+    empty = _agent(SQIL, ablations=Ablations(freeze_replay=True))
     with pytest.raises(RuntimeError, match="no update would ever run"):
         empty.fit(_dataset(n=10))
 
@@ -771,8 +776,8 @@ def test_conservative_weight_ranks_random_actions_closer_to_the_stored_ones():
     data = [(o, np.full(ACT_DIM, 0.5), r, o2, ab, last) for o, _, r, o2, ab, last in _dataset(n=600)]
     gaps = {}
     for weight, hinge in ((0.0, False), (5.0, False), (5.0, True)):
-        agent = _agent(LSIQ, objective="mixture", critic_lr=1e-3, conservative_weight=weight, conservative_actions=4,
-                       conservative_hinge=hinge)
+        ablations = Ablations(conservative_weight=weight, conservative_actions=4, conservative_hinge=hinge)
+        agent = _agent(LSIQ, objective="mixture", critic_lr=1e-3, ablations=ablations)
         agent.fit(data)
         assert ("conservative_penalty" in agent.last_info) == (weight > 0)
         replay = agent.replay.sample(256, np.random.default_rng(1))
@@ -784,7 +789,7 @@ def test_conservative_weight_ranks_random_actions_closer_to_the_stored_ones():
 @pytest.mark.parametrize("kw", [{"conservative_weight": -1.0}, {"conservative_actions": 0}])
 def test_conservative_penalty_settings_rejected(kw):
     with pytest.raises(ValueError, match="conservative"):
-        _agent(SQIL, **kw)
+        _agent(SQIL, ablations=Ablations(**kw))
 
 
 def test_actor_bc_term_pulls_the_mean_action_to_the_expert_actions():
@@ -793,7 +798,7 @@ def test_actor_bc_term_pulls_the_mean_action_to_the_expert_actions():
     obs, actions = (torch.as_tensor(x, dtype=torch.float32) for x in (expert.obs, expert.actions))
     errors = {}
     for bc_alpha in (None, 0.1):
-        agent = _agent(LSIQ, actor_lr=1e-3, actor_bc_alpha=bc_alpha)
+        agent = _agent(LSIQ, actor_lr=1e-3, ablations=Ablations(actor_bc_alpha=bc_alpha))
         agent.set_expert(expert)
         agent.fit(_dataset(n=300))
         with torch.no_grad():
@@ -803,6 +808,6 @@ def test_actor_bc_term_pulls_the_mean_action_to_the_expert_actions():
 
 def test_actor_bc_settings_rejected():
     with pytest.raises(ValueError, match="actor_bc_alpha must be > 0"):
-        _agent(SQIL, actor_bc_alpha=0.0)
+        _agent(SQIL, ablations=Ablations(actor_bc_alpha=0.0))
     with pytest.raises(ValueError, match="state-only"):
-        _agent(LSIQfO, actor_bc_alpha=2.5)
+        _agent(LSIQfO, ablations=Ablations(actor_bc_alpha=2.5))

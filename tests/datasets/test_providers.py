@@ -394,6 +394,6 @@ def test_create_dataset_passes_workers_to_rollout_providers(dirs, hopper_expert,
 
 
 def test_train_configs_dataset_workers_reaches_create_dataset():
-    from loco_il.experiment.runner import dataset_kwargs
+    from loco_il.datasets.loading import dataset_kwargs
     assert dataset_kwargs({"workers": 4, "n_episodes": 12})["workers"] == 4
     assert "workers" not in dataset_kwargs({"workers": None})

@@ -4,7 +4,8 @@ from __future__ import annotations
 import csv
 import json
 
-from loco_il.experiment.logging import CSV_COLUMNS, RunLogger, read_csv
+from loco_il.experiment.logging import CSV_COLUMNS, RunLogger
+from loco_il.utils.fileio import read_csv
 
 
 def test_csv_written_by_an_older_version_is_rewritten_with_the_current_columns(tmp_path):

@@ -301,6 +301,12 @@ class ILAgent(Agent):
         atomic_torch_save({"algorithm": self.name, "class": type(self), "init_args": args,
                            "init_kwargs": kwargs, "state": self.state_dict()}, path)
 
+    @classmethod
+    def _saved_init_kwargs(cls, kwargs: dict) -> dict:
+        """The constructor keyword arguments of an agent file, as this class's constructor takes them now
+        (a subclass whose arguments changed converts those of older files here)."""
+        return kwargs
+
     @staticmethod
     def _read_checkpoint(path) -> dict:
         return torch.load(path, map_location="cpu", weights_only=False)
@@ -314,7 +320,7 @@ class ILAgent(Agent):
         agent_cls = ckpt["class"]
         if not issubclass(agent_cls, cls):
             raise TypeError(f"{path} holds a {agent_cls.__name__}, not a {cls.__name__}")
-        kwargs = dict(ckpt["init_kwargs"])
+        kwargs = agent_cls._saved_init_kwargs(dict(ckpt["init_kwargs"]))
         if device is not None:
             kwargs["device"] = device
             if torch.device(device).type != "cuda" and kwargs.get("cuda_graph"):

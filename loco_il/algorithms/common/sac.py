@@ -22,6 +22,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from .ablations import ABLATION_NAMES, Ablations
 from .agent_base import ILAgent, load_optimizer_state
 from .cuda_graph import GraphedStep, make_capturable
 from .networks import EnsembleQ, GaussianPolicy
@@ -195,25 +196,10 @@ class OffPolicyILAgent(ILAgent):
     updated after every actor step with that rate; it never acts during training (training is the same
     with or without it), `averaged_actor()` swaps it in for an evaluation.
 
-    `freeze_replay=True` (an ablation, e.g. for a fork): new transitions are no longer stored, so the updates go on
-    over the replay memory as it is; whether a change of behaviour comes from the data the agent collects or
-    from the updates themselves.
-
-    `conservative_weight` w > 0 (an ablation, our addition; 0 = off): the critic loss gains w times CQL's
-    penalty (`conservative_penalty`) on the agent batch's states, with `conservative_actions` uniform random
-    actions against the stored action. It tests whether a critic that ranks actions the agent never took above
-    its own (the "Q gap" of benchmarks/offpolicy_diagnostics.py) is what makes a learner leave the expert.
-    `conservative_hinge=True` clips each state's term at 0 (see `conservative_penalty`). It costs one more
-    critic forward on (K + 1) x batch_size rows per update.
-
-    `actor_bc_alpha` (an ablation, our addition; None = off): the actor's loss becomes TD3+BC's, SAC's loss
-    scaled by actor_bc_alpha / mean |Q| plus the squared distance of the policy's mean action to the expert's
-    action at the expert batch's states (`bc_regularized_actor_loss`); a policy constraint that tests whether
-    anchoring the actor at the demonstrations keeps it at the expert. Needs the expert's actions.
-
-    `critic_layer_norm=True` (an ablation, our addition): LayerNorm after each hidden layer of every critic head,
-    as in Ball et al. 2023 (RLPD), where it keeps a critic trained on offline (here: expert) data from
-    extrapolating to large values on actions the data does not cover.
+    `ablations` (an `Ablations`, `common/ablations.py`; all off by default): changes to the method that test why a
+    learner leaves the expert, apart from its own options: `freeze_replay` (no new transitions stored),
+    `conservative_weight` (CQL's critic penalty, `conservative_penalty`), `actor_bc_alpha` (TD3+BC's actor loss,
+    `bc_regularized_actor_loss`; needs the expert's actions) and `critic_layer_norm` (LayerNorm critics).
 
     `cuda_graph=True` (device cuda only): after three eager updates, each update is replayed from a captured
     CUDA graph (`common/cuda_graph.py`): the same computation in one launch instead of hundreds, for networks
@@ -230,11 +216,16 @@ class OffPolicyILAgent(ILAgent):
                  random_initial_steps: int = 0, updates_per_step: int = 1, actor_delay: int = 1,
                  critic_grad_clip: float | None = None, actor_on_expert_states: bool = True,
                  n_critics: int = 2, gamma: float | None = None, actor_ema: float | None = None,
-                 freeze_replay: bool = False, conservative_weight: float = 0.0, conservative_actions: int = 10,
-                 conservative_hinge: bool = False, actor_bc_alpha: float | None = None,
-                 critic_layer_norm: bool = False, cuda_graph: bool = False, device: str = "cpu",
+                 ablations: Ablations | None = None, cuda_graph: bool = False, device: str = "cpu",
                  seed: int | None = None):
         super().__init__(mdp_info, policy_module, device=device, seed=seed)
+        self.ablations = Ablations() if ablations is None else ablations
+        if not isinstance(self.ablations, Ablations):
+            raise TypeError(f"ablations must be an Ablations, got {type(ablations).__name__} (a config's flat "
+                            "keys become one through loco_il.algorithms.common.ablations.split_ablations)")
+        if self.ablations.actor_bc_alpha is not None and not self.needs_expert_actions:
+            raise ValueError(f"actor_bc_alpha needs the expert's actions, which {type(self).__name__} "
+                             "does not use (a state-only learner)")
         self.obs_dim = int(np.prod(mdp_info.observation_space.shape))
         self.act_dim = int(np.prod(mdp_info.action_space.shape))
         # the learner's discount: the task's MDPInfo.gamma unless the config sets one (an algorithm
@@ -244,26 +235,14 @@ class OffPolicyILAgent(ILAgent):
             raise ValueError(f"gamma must lie in (0, 1), got {self.gamma}")
         self.sac = SACCore(self.policy_module, self.obs_dim, self.act_dim, critic_hidden, self.gamma, tau,
                            actor_lr, critic_lr, alpha_lr, init_alpha, learn_alpha, target_entropy,
-                           critic_grad_clip, self.device, n_critics, critic_layer_norm=critic_layer_norm)
+                           critic_grad_clip, self.device, n_critics,
+                           critic_layer_norm=self.ablations.critic_layer_norm)
         self.batch_size, self.expert_batch_size = int(batch_size), int(expert_batch_size)
         self.initial_replay_size = int(initial_replay_size)
         self.random_initial_steps = int(random_initial_steps)
         self.updates_per_step, self.actor_delay = int(updates_per_step), int(actor_delay)
         self.actor_on_expert_states = actor_on_expert_states
         self.replay = TransitionBuffer(replay_capacity, self.obs_dim, self.act_dim, self.device)
-        self.freeze_replay = bool(freeze_replay)
-        self.conservative_weight, self.conservative_actions = float(conservative_weight), int(conservative_actions)
-        self.conservative_hinge = bool(conservative_hinge)
-        self.actor_bc_alpha = None if actor_bc_alpha is None else float(actor_bc_alpha)
-        if self.actor_bc_alpha is not None:
-            if not self.actor_bc_alpha > 0.0:
-                raise ValueError(f"actor_bc_alpha must be > 0 (or None: off), got {actor_bc_alpha}")
-            if not self.needs_expert_actions:
-                raise ValueError(f"actor_bc_alpha needs the expert's actions, which {type(self).__name__} "
-                                 "does not use (a state-only learner)")
-        if self.conservative_weight < 0.0 or self.conservative_actions < 1:
-            raise ValueError("conservative_weight must be >= 0 and conservative_actions >= 1, got "
-                             f"{conservative_weight} and {conservative_actions}")
         self.expert_buffer: TransitionBuffer | None = None
         self.n_transitions = 0
         self.n_updates = 0
@@ -286,6 +265,14 @@ class OffPolicyILAgent(ILAgent):
                              f"step), got actor_delay={self.actor_delay}")
         self._graphed_step = GraphedStep(self._update_step) if self.cuda_graph else None
 
+    @classmethod
+    def _saved_init_kwargs(cls, kwargs: dict) -> dict:
+        # agent files written while the ablations were separate keyword arguments hold them flat
+        flat = {k: kwargs.pop(k) for k in ABLATION_NAMES if k in kwargs}
+        if flat:
+            kwargs["ablations"] = Ablations(**flat)
+        return kwargs
+
     # ------------------------------------------------------------------ data
     def set_expert(self, expert) -> None:
         super().set_expert(expert)
@@ -298,7 +285,7 @@ class OffPolicyILAgent(ILAgent):
         if self.expert_buffer is None:
             raise RuntimeError("call set_expert(...) before fit")
         d = self.parse_dataset(dataset)
-        if not self.freeze_replay:
+        if not self.ablations.freeze_replay:
             self.replay.add(d["obs"], d["next_obs"], d["absorbing"].astype(np.float32), d["actions"])
         elif len(self.replay) < self.initial_replay_size:
             raise RuntimeError(f"freeze_replay with {len(self.replay)} stored transitions (initial_replay_size "
@@ -346,14 +333,16 @@ class OffPolicyILAgent(ILAgent):
             states = torch.cat([expert["obs"], policy["obs"]]) if self.actor_on_expert_states else policy["obs"]
             pi_states = self.policy_module._mean_log_std(states)
         loss, info = self.critic_loss(expert, policy, pi_states if self.actor_on_expert_states else None)
-        if self.conservative_weight > 0.0:
+        ablations = self.ablations
+        if ablations.conservative_weight > 0.0:
             penalty = self.conservative_term(policy)
-            loss = loss + self.conservative_weight * penalty
+            loss = loss + ablations.conservative_weight * penalty
             info["conservative_penalty"] = penalty.detach()
         self.sac.critic_step(loss)
         info["critic_loss"] = loss.detach()
         if take_actor_step:
-            bc = None if self.actor_bc_alpha is None else (expert["obs"], expert["actions"], self.actor_bc_alpha)
+            bc_alpha = ablations.actor_bc_alpha
+            bc = None if bc_alpha is None else (expert["obs"], expert["actions"], bc_alpha)
             info.update(self.sac.actor_step(states, bc, pi_states))
             if self.policy_ema is not None:
                 with torch.no_grad():
@@ -389,10 +378,11 @@ class OffPolicyILAgent(ILAgent):
         """`conservative_penalty` at the agent batch's states: K uniform random actions in [-1, 1] (the squashed
         policy's action box) against the stored action, one critic forward for all of them."""
         obs, act = policy["obs"], policy["actions"]
-        n, k = len(obs), self.conservative_actions
+        n, k = len(obs), self.ablations.conservative_actions
         random_act = torch.rand(k * n, self.act_dim, device=obs.device) * 2.0 - 1.0
         qs = self.sac.critic(obs.repeat(k + 1, 1), torch.cat([random_act, act]))  # (H, (K + 1) N), k-major
-        return conservative_penalty(qs[:, :k * n].unflatten(1, (k, n)), qs[:, k * n:], self.conservative_hinge)
+        return conservative_penalty(qs[:, :k * n].unflatten(1, (k, n)), qs[:, k * n:],
+                                    self.ablations.conservative_hinge)
 
     def critic_loss(self, expert: dict, policy: dict, pi_obs: tuple[torch.Tensor, torch.Tensor] | None = None
                     ) -> tuple[torch.Tensor, dict]:

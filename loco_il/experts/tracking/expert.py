@@ -22,9 +22,10 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from loco_il.experts.policy import ExpertPolicy, _plain
+from loco_il.experts.policy import ExpertPolicy
 from loco_il.experts.tracking.controller import PHASE_FEATURES, TrackingController
 from loco_il.utils.atomic import atomic_torch_save
+from loco_il.utils.plain import to_plain
 
 FORMAT = "loco_il.tracking_expert/v1"
 
@@ -91,7 +92,7 @@ class TrackingExpert:
         self.metadata.setdefault("created", time.strftime("%Y-%m-%dT%H:%M:%S%z"))
         self.metadata["checksum"] = self.checksum()
         atomic_torch_save({"format": FORMAT, "policy": self.policy.to_file_dict(),
-                           "controller": self.controller.to_dict(), "metadata": _plain(self.metadata)}, path)
+                           "controller": self.controller.to_dict(), "metadata": to_plain(self.metadata)}, path)
         return self.metadata["checksum"]
 
     @classmethod
