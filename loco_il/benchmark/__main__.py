@@ -83,7 +83,7 @@ def cmd_run(args: argparse.Namespace, echo=print) -> int:
     results_dir = Path(args.results_dir) if args.results_dir else proto.results_dir
     runs = status.states(cells, results_dir)
     counts = {name: sum(r.state == name for r in runs)
-              for name in (status.FINISHED, status.UNFINISHED, status.NEW, status.OVER)}
+              for name in (status.FINISHED, status.RUNNING, status.UNFINISHED, status.NEW, status.OVER)}
     blocked = {c.key: availability.blocked_reason(c.task_id) for c in cells}
     todo = [(r.cell, r.seed) for r in runs
             if r.state in (status.UNFINISHED, status.NEW) and not blocked[r.cell.key]]
@@ -95,7 +95,7 @@ def cmd_run(args: argparse.Namespace, echo=print) -> int:
         tasks = sorted({c.task_id for c in cells if blocked[c.key] == reason})
         echo(f"[benchmark] skipped {', '.join(tasks)}: {reason}")
     for r in runs:
-        if r.state == status.OVER:
+        if r.state in (status.OVER, status.RUNNING):
             echo(f"[benchmark] skipped {r.cell.key} {r.describe()}")
     changed = [o for o in args.overrides if launch.changes_results(o)]
     if changed:

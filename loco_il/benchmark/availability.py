@@ -3,12 +3,18 @@ ranked snapshots (a file in the expert search path, `$LOCO_IL_EXPERTS`, or a bui
 one are skipped by `run` and listed as blocked by `table`, with how to get the expert."""
 from __future__ import annotations
 
+import os
 from functools import lru_cache
 
 
-@lru_cache(maxsize=None)
 def blocked_reason(task_id: str) -> str | None:
     """None when the dataset of `task_id` can be built; else a one-line reason with the fix."""
+    return _blocked_reason(task_id, os.environ.get("LOCO_IL_EXPERTS", ""))
+
+
+@lru_cache(maxsize=None)
+def _blocked_reason(task_id: str, experts_path: str) -> str | None:
+    """`blocked_reason`, cached per expert search path (`experts_path` is part of the key, not read)."""
     from loco_il.datasets.providers.expert import (available_experts, available_snapshot_sets, builtin_expert,
                                                    task_key)
     key = task_key(task_id)

@@ -11,7 +11,7 @@ from loco_il.benchmark import paths
 from loco_il.benchmark.commands import Launch
 
 #: train.py keys that change where or how fast a run trains, not what it computes
-NEUTRAL_KEYS = ("device", "torch_threads", "dataset.workers", "logger.progress")
+NEUTRAL_KEYS = ("device", "torch_threads", "dataset.workers", "logger.progress", "algo.params.cuda_graph")
 
 
 def changes_results(override: str) -> bool:

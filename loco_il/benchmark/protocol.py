@@ -149,6 +149,9 @@ def _read_raw(path: Path, chain: tuple[Path, ...] = ()) -> dict[str, Any]:
     base = raw.pop("base", None)
     if base is None:
         return raw
+    base = str(base)
+    if base.endswith((".yaml", ".yml")) and not Path(base).is_absolute():
+        base = str(path.parent / base)          # a base file named relatively lies next to this protocol
     parent = _read_raw(protocol_path(base), chain + (path.resolve(),))
     parent.pop("results_dir", None)   # each protocol keeps its own runs
     parent.pop("description", None)

@@ -2,10 +2,9 @@
 with the protocol's settings, printed by `run --dry-run`."""
 from __future__ import annotations
 
-import json
 from collections import Counter
 
-from benchmark_helpers import tiny_protocol, write_protocol
+from benchmark_helpers import finished_run, tiny_protocol, write_protocol
 
 from loco_il.benchmark import __main__ as cli
 from loco_il.benchmark.cells import Selection, select
@@ -37,9 +36,8 @@ def test_plan_covers_exactly_the_missing_runs(tmp_path):
 def test_dry_run_prints_the_sweeps(tmp_path, capsys):
     path = write_protocol(tmp_path, "tiny", tiny_protocol())
     logs = tmp_path / "logs"
-    done = logs / "Hopper.run.perfect" / "bc" / "seed0"
-    done.mkdir(parents=True)
-    (done / "eval.json").write_text(json.dumps({"task_id": "Hopper.run.perfect", "name": "bc", "steps": 50}))
+    finished_run(logs / "Hopper.run.perfect" / "bc" / "seed0", "Hopper.run.perfect", "bc", 0, 50, 1.0, 3000.0, [],
+                 unit="gradient steps")
     code = cli.main(["run", str(path), "--dry-run", "--results-dir", str(logs), "--tasks", "Hopper.run",
                      "hydra/launcher=joblib", "hydra.launcher.n_jobs=2"])
     out = capsys.readouterr().out.splitlines()

@@ -107,7 +107,7 @@ def test_base_protocol_is_merged_and_cycles_are_refused(tmp_path):
     proto = load_protocol(child)
     assert proto.seeds == (4,) and proto.family_of("lsiq").n_steps == 400 and proto.family_of("lsiq").eval_every == 100
     assert proto.results_dir == paths.LOGS_DIR / "child"
-    write_protocol(tmp_path, "a", {"base": str(tmp_path / "b.yaml")})
+    write_protocol(tmp_path, "a", {"base": "b.yaml"})             # relative: next to the protocol naming it
     write_protocol(tmp_path, "b", {"base": str(tmp_path / "a.yaml")})
     with pytest.raises(ProtocolError, match="form a cycle"):
         load_protocol(tmp_path / "a.yaml")

@@ -13,8 +13,9 @@ from benchmark_helpers import finished_run, tiny_protocol, write_protocol
 from loco_il.benchmark import __main__ as cli
 from loco_il.benchmark.cells import select
 from loco_il.benchmark.protocol import load_protocol
-from loco_il.benchmark.status import FINISHED, NEW, OVER, UNFINISHED, run_state
+from loco_il.benchmark.status import FINISHED, NEW, OVER, RUNNING, UNFINISHED, run_state
 from loco_il.benchmark.table import score_at, steps_label
+from loco_il.experiment.lock import run_dir_lock
 
 T95_2 = 4.302652729911275       # Student-t 0.975 quantile, 2 degrees of freedom
 
@@ -61,6 +62,10 @@ def test_run_states(grid):
     other = cells["Hopper.run.perfect/lsiq"]
     finished_run(other.run_dir(logs, 0), "Hopper.run.perfect", "lsiq_other", 0, 200, 0.1, 1.0, [])
     assert run_state(other, 0, logs).state == UNFINISHED
+    # a run dir that a train.py process holds is running: `run` leaves it to that process
+    with run_dir_lock(bc.run_dir(logs, 2)):
+        assert run_state(bc, 2, logs).state == RUNNING and "running now" in run_state(bc, 2, logs).describe()
+    assert run_state(bc, 2, logs).state == UNFINISHED
 
 
 def test_table_rows_statistics_and_commands(grid, capsys):
