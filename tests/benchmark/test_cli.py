@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import json
 
-from benchmark_helpers import finished_run, tiny_protocol, write_protocol
+from benchmark_fixtures import finished_run, tiny_protocol, write_protocol
 
 from loco_il.benchmark import __main__ as cli
 

@@ -7,7 +7,7 @@ import pytest
 from loco_il.benchmark import paths
 from loco_il.benchmark.cells import Selection, all_cells, select
 from loco_il.benchmark.protocol import ProtocolError, load_protocol
-from benchmark_helpers import tiny_protocol, write_protocol
+from benchmark_fixtures import tiny_protocol, write_protocol
 
 
 def test_small_protocol_is_the_documented_grid():

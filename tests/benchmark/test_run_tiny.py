@@ -7,7 +7,7 @@ import csv
 import json
 
 import pytest
-from benchmark_helpers import write_protocol
+from benchmark_fixtures import write_protocol
 
 from loco_il.benchmark import __main__ as cli
 

@@ -8,7 +8,7 @@ import json
 import math
 
 import pytest
-from benchmark_helpers import finished_run, tiny_protocol, write_protocol
+from benchmark_fixtures import finished_run, tiny_protocol, write_protocol
 
 from loco_il.benchmark import __main__ as cli
 from loco_il.benchmark.cells import select
