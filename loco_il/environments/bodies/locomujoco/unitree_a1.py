@@ -33,6 +33,10 @@ MODEL = "quadrupeds/unitree_a1_torque.xml"
 TRUNK_Z = 0.43      # unitree_a1_torque.xml: <body name="trunk" pos="0 0 0.43">
 GOAL_SPEED = 0.5    # LocoMuJoCo UnitreeA1(default_target_velocity=0.5)
 COMMAND_NAMES = ("cmd_cos", "cmd_sin", "cmd_speed")
+#: start-state noise: uniform +-0.01 on every qpos and qvel entry, the humanoids' scale (common.py), so that seeded
+#: evaluation episodes start from distinct states; the built-in trot controller keeps its return with it
+#: (751.1 over 10 episodes, against 748.8 without)
+RESET_NOISE = ("uniform", 0.01)
 
 TERMINATION = RootJointFall(
     height_range=slide_to_height(TRUNK_Z, (-0.24, np.inf)),
@@ -66,6 +70,6 @@ def _edit(spec) -> None:
 
 
 UNITREE_A1 = locomujoco_body("UnitreeA1", MODEL, TASKS, "locomujoco/quadrupeds", _edit,
-                             family="quadruped", default_task="simple")
+                             family="quadruped", default_task="simple", reset_noise=RESET_NOISE)
 
 register_body(UNITREE_A1)

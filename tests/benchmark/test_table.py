@@ -1,0 +1,124 @@
+"""`table` on finished-run folders written here: the cells' rows with their statistics and commands, the scores along
+the way, the missing and blocked runs, the CSV, the figures; and where each run stands (`status`)."""
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+
+import pytest
+from benchmark_fixtures import finished_run, tiny_protocol, write_protocol
+
+from loco_il.benchmark import __main__ as cli
+from loco_il.benchmark.cells import select
+from loco_il.benchmark.protocol import load_protocol
+from loco_il.benchmark.status import FINISHED, NEW, OVER, RUNNING, UNFINISHED, run_state
+from loco_il.benchmark.table import score_at, steps_label
+from loco_il.experiment.lock import run_dir_lock
+
+T95_2 = 4.302652729911275       # Student-t 0.975 quantile, 2 degrees of freedom
+
+
+def _ci(values):
+    mean = sum(values) / len(values)
+    sd = math.sqrt(sum((v - mean) ** 2 for v in values) / (len(values) - 1))
+    return T95_2 * sd / math.sqrt(len(values))
+
+
+@pytest.fixture
+def grid(tmp_path, monkeypatch):
+    """The tiny protocol with: Hopper gail complete (3 seeds; seed 2 evaluated at 104/208 as an on-policy run
+    fitting in batches would be), Hopper bc 2 of 3 seeds (seed 2 unfinished), UnitreeH1 gail 1 seed (no expert
+    baseline: scored by return), a vail run of another budget, Atlas.walk.perfect blocked (no expert)."""
+    monkeypatch.delenv("LOCO_IL_EXPERTS", raising=False)
+    path = write_protocol(tmp_path, "tiny", tiny_protocol())
+    logs = tmp_path / "logs"
+    hop = logs / "Hopper.run.perfect"
+    for seed, (a, b, c) in enumerate([(0.2, 0.5, 0.8), (0.3, 0.6, 0.9), (0.4, 0.7, 1.0)]):
+        steps = (104, 208) if seed == 2 else (100, 200)
+        finished_run(hop / "gail" / f"seed{seed}", "Hopper.run.perfect", "gail", seed, 300, c, 1000.0 * c,
+                     [(steps[0], a, 100 * a), (steps[1], b, 100 * b), (300, c, 100 * c)])
+    for seed, score in ((0, 0.95), (1, 1.05)):
+        finished_run(hop / "bc" / f"seed{seed}", "Hopper.run.perfect", "bc", seed, 50, score, 3000.0 + seed,
+                     [(10, 0.5, 1.0), (50, score, 2.0)], unit="gradient steps")
+    (hop / "bc" / "seed2").mkdir(parents=True)
+    (hop / "bc" / "seed2" / "checkpoint.json").write_text(json.dumps({"step": 20}))
+    finished_run(hop / "vail" / "seed0", "Hopper.run.perfect", "vail", 0, 5000, 0.5, 50.0, [(5000, 0.5, 50.0)])
+    finished_run(logs / "UnitreeH1.walk.real" / "gail" / "seed0", "UnitreeH1.walk.real", "gail", 0, 300, None,
+                 523.4, [(100, None, 40.0), (200, None, 60.0), (300, None, 523.4)])
+    return path, logs, tmp_path / "out"
+
+
+def test_run_states(grid):
+    path, logs, _ = grid
+    cells = {c.key: c for c in select(load_protocol(path))}
+    gail, bc, vail = cells["Hopper.run.perfect/gail"], cells["Hopper.run.perfect/bc"], cells["Hopper.run.perfect/vail"]
+    assert run_state(gail, 0, logs).state == FINISHED and run_state(gail, 0, logs).step == 300
+    assert (run_state(bc, 2, logs).state, run_state(bc, 2, logs).step) == (UNFINISHED, 20)
+    assert "resumes at step 20 of 50" in run_state(bc, 2, logs).describe()
+    assert run_state(vail, 0, logs).state == OVER and run_state(vail, 1, logs).state == NEW
+    # an eval.json of another algorithm's run in the folder does not count
+    other = cells["Hopper.run.perfect/lsiq"]
+    finished_run(other.run_dir(logs, 0), "Hopper.run.perfect", "lsiq_other", 0, 200, 0.1, 1.0, [])
+    assert run_state(other, 0, logs).state == UNFINISHED
+    # a run dir that a train.py process holds is running: `run` leaves it to that process
+    with run_dir_lock(bc.run_dir(logs, 2)):
+        assert run_state(bc, 2, logs).state == RUNNING and "running now" in run_state(bc, 2, logs).describe()
+    assert run_state(bc, 2, logs).state == UNFINISHED
+
+
+def test_table_rows_statistics_and_commands(grid, capsys):
+    path, logs, out = grid
+    assert cli.main(["table", str(path), "--results-dir", str(logs), "--out", str(out)]) == 0
+    assert "wrote" in capsys.readouterr().out
+    md = (out / "tiny.md").read_text()
+    ci = _ci([0.8, 0.9, 1.0])
+    cmd = (f"python train.py -m task=Hopper.run.perfect algo=gail seed=0,1,2 n_steps=300 eval.every=100 "
+           f"eval.episodes=5 eval.final_episodes=10 logger=csv results_dir={logs}")
+    assert (f"| Hopper.run.perfect | gail | 300 env steps | 3/3 | 0.90 ± {ci:.2f} | 0.30 ± {ci:.2f} | "
+            f"0.60 ± {ci:.2f} | 900.0 ± {1000 * ci:.1f} | `{cmd}` |") in md
+    assert "| Hopper.run.perfect | bc | 50 gradient steps | 2/3 | 1.00 ± " in md and "| — | — | 3000.5 ± " in md
+    assert "| UnitreeH1.walk.real | gail | 300 env steps | 1/3 | 523.4 (return) | 40.0 (return) | 60.0 (return) |" in md
+    missing = md.split("## Missing runs")[1].split("## Settings")[0]
+    assert ("| Hopper.run.perfect | bc | 2 | seed 2: unfinished, resumes at step 20 of 50 | `python train.py -m "
+            "task=Hopper.run.perfect algo=bc seed=2 ") in missing
+    assert "| UnitreeH1.walk.real | gail | 1 2 | not started |" in missing
+    assert "past the budget 300" in missing and "seeds 1 2: not started" in missing   # vail seed 0 trained to 5000
+    assert ("| Atlas.walk.perfect | gail, vail, lsiq, lsiq_twin, bc | no expert for Atlas.walk" in missing
+            and f"`python -m loco_il.benchmark run {path} --tasks Atlas.walk.perfect` |" in missing)
+    assert "Hopper.run.perfect | gail |" not in missing
+    assert "## Estimated cost" in md and "of these, blocked until their dataset exists: 15 runs" in md
+    assert sorted(p.name for p in (out / "curves" / "tiny").iterdir()) == ["Hopper.run.perfect.png",
+                                                                           "UnitreeH1.walk.real.png"]
+    assert "[Hopper.run.perfect](curves/tiny/Hopper.run.perfect.png)" in md
+
+
+def test_table_csv(grid):
+    path, logs, out = grid
+    cli.main(["table", str(path), "--results-dir", str(logs), "--out", str(out), "--no-plots"])
+    rows = {(r["task"], r["algorithm"]): r for r in csv.DictReader(io.StringIO((out / "tiny.csv").read_text()))}
+    assert len(rows) == 11
+    assert {k: r["status"] for k, r in rows.items() if r["status"] != "blocked"} == {
+        ("Hopper.run.perfect", "gail"): "complete", ("Hopper.run.perfect", "bc"): "partial",
+        ("Hopper.run.perfect", "vail"): "missing", ("Hopper.run.perfect", "lsiq"): "missing",
+        ("Hopper.run.perfect", "lsiq_twin"): "missing", ("UnitreeH1.walk.real", "gail"): "partial"}
+    gail = rows[("Hopper.run.perfect", "gail")]
+    assert (gail["final_mean"], gail["at_100_mean"], gail["at_100_n"], gail["at_200_mean"]) == (
+        "0.9000", "0.3000", "3", "0.6000")
+    assert float(gail["at_100_ci95"]) == pytest.approx(_ci([0.2, 0.3, 0.4]), abs=1e-4)
+    assert gail["seeds_finished"] == "0 1 2" and gail["metric"] == "normalized"
+    assert rows[("UnitreeH1.walk.real", "gail")]["metric"] == "return"
+    assert rows[("UnitreeH1.walk.real", "gail")]["missing_seeds"] == "1 2"
+    assert rows[("Atlas.walk.perfect", "bc")]["blocked"].startswith("no expert for Atlas.walk")
+    assert not (out / "curves").exists()
+
+
+def test_score_along_the_way_is_the_first_evaluation_at_or_after_the_step():
+    rows = [{"step": 50.0, "normalized_score": 0.1}, {"step": 104.0, "normalized_score": 0.4},
+            {"step": 208.0, "normalized_score": 0.6}]
+    assert score_at(rows, 100, 100, "normalized") == 0.4
+    assert score_at(rows, 300, 100, "normalized") is None          # the run stopped before it
+    assert score_at(rows, 100, 4, "normalized") is None            # no evaluation within the interval
+    assert [steps_label(s) for s in (100, 100_000, 1_500_000, 40_000_000, 1234)] == ["100", "100k", "1.5M", "40M",
+                                                                                    "1234"]
