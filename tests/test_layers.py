@@ -1,5 +1,5 @@
 """The package's layers, bottom to top: utils -> environments -> motion -> experts -> datasets -> algorithms ->
-experiment -> evaluation. A module's module-level imports stay in its layer or point down (the package root
+experiment -> evaluation -> benchmark. A module's module-level imports stay in its layer or point down (the package root
 and `loco_il.rollout` may import anything), they form no cycle, and every subpackage imports on its own in
 a fresh interpreter.
 
@@ -19,7 +19,7 @@ import pytest
 
 import loco_il
 
-LAYERS = ("utils", "environments", "motion", "experts", "datasets", "algorithms", "experiment", "evaluation")
+LAYERS = ("utils", "environments", "motion", "experts", "datasets", "algorithms", "experiment", "evaluation", "benchmark")
 #: modules above every layer: the package root (re-exports the environments) and the rollout command
 TOP = {"loco_il", "loco_il.rollout"}
 #: upward imports that are known and not fixed yet: (importer, imported) -> why it is still there. A fixed one

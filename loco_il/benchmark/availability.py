@@ -15,8 +15,9 @@ def blocked_reason(task_id: str) -> str | None:
 @lru_cache(maxsize=None)
 def _blocked_reason(task_id: str, experts_path: str) -> str | None:
     """`blocked_reason`, cached per expert search path (`experts_path` is part of the key, not read)."""
-    from loco_il.datasets.providers.expert import (available_experts, available_snapshot_sets, builtin_expert,
-                                                   task_key)
+    from loco_il.environments.registry import task_key
+    from loco_il.experts.files import available_experts, available_snapshot_sets
+    from loco_il.experts.registry import builtin_expert
     key = task_key(task_id)
     dataset = task_id.rsplit(".", 1)[-1]
     builtin = builtin_expert(key)
