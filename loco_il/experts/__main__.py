@@ -7,6 +7,8 @@
     python -m loco_il.experts train task=Atlas.walk algo=tracking        # a motion-tracking expert (PPO)
     python -m loco_il.experts eval path=runs/experts/Atlas.walk/seed0/best.pt episodes=100 starts=both
     python -m loco_il.experts slim path=runs/ant/checkpoint.pt out=ant_checkpoint_noreplay.pt
+    python -m loco_il.experts tune path=runs/tracking/Atlas.walk/seed0/evals/step_005001216.pt out=expert.pt \
+        speed_gain=1.04 speed_gain_time=4
 
 `train` is a Hydra app (configs/train.yaml with configs/algo/<algo>.yaml, then the `<algo>:` section of
 configs/body/<Body>.yaml when it exists); re-running the same command with the same out_dir resumes from
@@ -15,7 +17,8 @@ summary (final evaluation return mean and std, env steps, wall time). `eval` pri
 file; with `path=<folder>` (e.g. a run's `evals/`, written with `keep_eval_policies=true`) it evaluates every
 file in it on the same episodes and names the most reliable one (fewest terminated episodes).
 `slim` copies a checkpoint without its replay memory (a resumed run refills it); copy the result to
-<out_dir>/checkpoint.pt to go on from it.
+<out_dir>/checkpoint.pt to go on from it. `tune` writes a copy of a tracking expert with other deployment settings
+(the phase clock's: `TrackingSettings.DEPLOYMENT_FIELDS`).
 """
 from __future__ import annotations
 
@@ -195,10 +198,30 @@ def slim_main(argv: list[str]) -> None:
     print(json.dumps({"path": args["path"], "out": args["out"], **slim_checkpoint(args["path"], args["out"])}), flush=True)
 
 
+def tune_main(argv: list[str]) -> None:
+    from loco_il.experts.policy import load_expert
+    from loco_il.experts.tracking.expert import TrackingExpert
+    args = dict(a.split("=", 1) for a in argv if "=" in a)
+    path, out = args.pop("path", None), args.pop("out", None)
+    if not path or not out or not args or len(argv) != len(args) + 2:
+        raise SystemExit("usage: python -m loco_il.experts tune path=<tracking expert.pt> out=<new file> "
+                         "<setting>=<value> ... (e.g. speed_gain=1.04 speed_gain_time=4)")
+    if not Path(path).is_file():
+        raise SystemExit(f"[loco_il] error: no expert file {path}")
+    expert = load_expert(path)
+    if not isinstance(expert, TrackingExpert):
+        raise SystemExit(f"{path} is not a tracking expert; only tracking experts have deployment settings")
+    try:
+        tuned = expert.with_settings(**{k: float(v) for k, v in args.items()})
+    except ValueError as err:
+        raise SystemExit(f"[loco_il] error: {err}") from None
+    print(json.dumps({"path": path, "out": out, "changes": args, "checksum": tuned.save(out)}), flush=True)
+
+
 def main(argv: list[str] | None = None) -> None:
     argv = list(sys.argv[1:] if argv is None else argv)
-    if argv and argv[0] == "slim":
-        slim_main(argv[1:])
+    if argv and argv[0] in ("slim", "tune"):
+        (slim_main if argv[0] == "slim" else tune_main)(argv[1:])
         return
     if not argv or argv[0] not in ("train", "eval"):
         print(USAGE, file=sys.stderr)

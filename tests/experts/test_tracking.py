@@ -173,6 +173,32 @@ def test_clock_ramp_enters_the_checksum_only_when_used(env, reference):
     assert "clock_ramp_time" not in dict(TrackingSettings().digest_items())
 
 
+def test_speed_gain_speeds_the_clock_up_slowly_and_is_a_deployment_setting(env, reference):
+    """speed_gain multiplies the clock's rate, reached from 1 over speed_gain_time; with_settings derives an
+    expert with another gain (a new checksum naming its source), and refuses settings that need retraining."""
+    from loco_il.experts.policy import ExpertPolicy
+    from loco_il.experts.tracking.expert import TrackingExpert
+    settings = TrackingSettings(speed_gain=1.05, speed_gain_time=2.0)
+    controller = TrackingController.for_model(env.model, reference, settings, env.dt)
+    env.seed(0)
+    env.reset()
+    controller.start(0.0, env.data)
+    rates = []
+    for _ in range(int(round(2.5 / env.dt))):
+        controller.env_action(np.zeros(env.model.nu), env.model, env.data)
+        rates.append(controller.rate)
+    assert rates[0] == pytest.approx(1.0, abs=1e-4) and np.all(np.diff(rates) >= 0) and rates[-1] == 1.05
+    assert rates[int(round(0.5 / env.dt))] < 1.01                 # the first half second is (nearly) untouched
+
+    policy = ExpertPolicy(env.info.observation_space.shape[0] + PHASE_FEATURES, env.model.nu, hidden=(8,))
+    base = TrackingExpert(policy, TrackingController.for_model(env.model, reference, TrackingSettings(), env.dt))
+    tuned = base.with_settings(speed_gain=1.04, speed_gain_time=4)
+    assert tuned.controller.settings.speed_gain == 1.04 and base.controller.settings.speed_gain == 1.0
+    assert tuned.checksum() != base.checksum() and tuned.metadata["derived_from"]["checksum"] == base.checksum()
+    with pytest.raises(ValueError, match="kp_angle.*retrain"):
+        base.with_settings(kp_angle=0.5)
+
+
 @pytest.fixture(scope="module")
 def trained(tmp_path_factory):
     """A tiny tracking run (2 iterations): files, resume and the shipped expert's format."""

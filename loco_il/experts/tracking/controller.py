@@ -121,7 +121,8 @@ class TrackingController:
         nothing when the episode starts on the reference; ours: from standing, full reference targets at once
         topple the robot within 0.2 s). With `clock_ramp_time` > 0 the clock itself starts at the start state's
         forward speed relative to the reference's (0 from standing, ~1 on the reference) and reaches full rate
-        over `clock_ramp_time` seconds, so the reference accelerates with the body instead of running away."""
+        over `clock_ramp_time` seconds, so the reference accelerates with the body instead of running away; the
+        rate is then multiplied by `speed_gain`, reached from 1 over `speed_gain_time` seconds."""
         self.phase = float(phase)
         self._elapsed = 0.0
         # the root's first dof is its forward (x) slide (LocoMuJoCo) or the free joint's world x velocity
@@ -141,7 +142,9 @@ class TrackingController:
         """The env action for this step (targets at the end of the step); then advances the phase."""
         ref = self.reference
         self._elapsed += self.control_dt
-        self.rate = _smoothstep_from(self._rate0, self._elapsed, self.settings.clock_ramp_time)
+        settings = self.settings
+        self.rate = (_smoothstep_from(self._rate0, self._elapsed, settings.clock_ramp_time)
+                     * _smoothstep_from(1.0, self._elapsed, settings.speed_gain_time, end=settings.speed_gain))
         phase_step = self.rate * self.phase_step
         q_ref, dq_ref = ref.targets(self.phase + phase_step)
         dq_ref = self.rate * dq_ref
@@ -179,9 +182,9 @@ class TrackingController:
         return b"".join(parts)
 
 
-def _smoothstep_from(start: float, elapsed: float, duration: float) -> float:
-    """`start` rising smoothly to 1 over `duration` seconds (1 at once when duration <= 0)."""
+def _smoothstep_from(start: float, elapsed: float, duration: float, end: float = 1.0) -> float:
+    """`start` moving smoothly to `end` over `duration` seconds (`end` at once when duration <= 0)."""
     if duration <= 0 or elapsed >= duration:
-        return 1.0
+        return end
     x = elapsed / duration
-    return start + (1.0 - start) * x * x * (3.0 - 2.0 * x)
+    return start + (end - start) * x * x * (3.0 - 2.0 * x)

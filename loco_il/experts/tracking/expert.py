@@ -14,6 +14,7 @@ File format (`torch.load(path, weights_only=True)`; plain tensors, dicts, lists,
 """
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import os
 import time
@@ -24,6 +25,7 @@ import numpy as np
 
 from loco_il.experts.policy import ExpertPolicy
 from loco_il.experts.tracking.controller import PHASE_FEATURES, TrackingController
+from loco_il.experts.tracking.settings import TrackingSettings
 from loco_il.utils.atomic import atomic_torch_save
 from loco_il.utils.plain import to_plain
 
@@ -83,6 +85,18 @@ class TrackingExpert:
         h = hashlib.sha256(self.policy.checksum().encode())
         h.update(self.controller.digest_bytes())
         return h.hexdigest()
+
+    def with_settings(self, **changes: Any) -> "TrackingExpert":
+        """A copy with other deployment settings (`TrackingSettings.DEPLOYMENT_FIELDS`, e.g. `speed_gain`); its
+        metadata names the expert it derives from. ValueError for any other field."""
+        other = sorted(set(changes) - set(TrackingSettings.DEPLOYMENT_FIELDS))
+        if other:
+            raise ValueError(f"cannot change {other} of a trained expert (they change its reference, gains or "
+                             f"inputs: retrain); changeable: {list(TrackingSettings.DEPLOYMENT_FIELDS)}")
+        settings = dataclasses.replace(self.controller.settings, **{k: float(v) for k, v in changes.items()})
+        metadata = {k: v for k, v in self.metadata.items() if k not in ("checksum", "commit", "created")}
+        metadata["derived_from"] = {"checksum": self.checksum(), "changes": dict(changes)}
+        return TrackingExpert(self.policy, dataclasses.replace(self.controller, settings=settings), metadata)
 
     # ------------------------------------------------------------------ files
     def save(self, path: str | os.PathLike) -> str:

@@ -43,12 +43,21 @@ class TrackingSettings:
     #                              the reference's (ours; 0: full rate at once, so from standing the reference runs
     #                              off at full speed and a body that cannot keep up hits max_root_error)
     target_speed: float | None = None   # time-scale the reference to this speed (None: the task's target)
+    speed_gain: float = 1.0      # the phase clock's rate once walking, relative to the reference's (ours: a
+    #                              tracker lags its reference, Atlas's by ~5 % in speed; a gain > 1 plays the
+    #                              reference that much faster without retraining)
+    speed_gain_time: float = 0.0  # s over which the gain rises from 1 (a smoothstep; slow, so that the start,
+    #                              where a body falls if anything is new, sees the clock it was trained with)
 
     #: what the shipped expert's actions depend on (fixed for a run); the other fields only shape training
-    EXPERT_FIELDS = ("action_scale", "kp_angle", "damping_ratio", "ramp_time", "target_speed", "clock_ramp_time")
+    EXPERT_FIELDS = ("action_scale", "kp_angle", "damping_ratio", "ramp_time", "target_speed", "clock_ramp_time",
+                     "speed_gain", "speed_gain_time")
+    #: expert fields a trained expert may change (`TrackingExpert.with_settings`): they shape only the phase clock
+    #: and the start's blend, not the reference, the gains or the policy's inputs
+    DEPLOYMENT_FIELDS = ("ramp_time", "clock_ramp_time", "speed_gain", "speed_gain_time")
     #: expert fields that enter an expert's checksum only when they differ from these values (fields added after
     #: experts were trained: their files keep their checksums)
-    DIGEST_DEFAULTS = {"clock_ramp_time": 0.0}
+    DIGEST_DEFAULTS = {"clock_ramp_time": 0.0, "speed_gain": 1.0, "speed_gain_time": 0.0}
 
     def digest_items(self) -> list[tuple[str, Any]]:
         """(name, value) of the expert fields that identify an expert (part of its checksum)."""
