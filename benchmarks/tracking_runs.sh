@@ -51,7 +51,11 @@ case "$verb" in
       mkdir -p "$saved"
       cp "$run/checkpoint.pt" "$run/evals.jsonl" "$saved"/
       [ -f "$run/train.log" ] && cp "$run/train.log" "$saved"/
-      [ -d "$run/snapshots" ] && mkdir -p "$saved/snapshots" && cp "$run"/snapshots/*.pt "$saved/snapshots"/
+      # snapshots are the preference levels of an expert to come; once the task's expert ships with its levels
+      # (loco_il/experts/shipped/<Task>/snapshots) they are not kept here
+      if [ -d "$run/snapshots" ] && [ ! -d "loco_il/experts/shipped/$task/snapshots" ]; then
+        mkdir -p "$saved/snapshots" && cp "$run"/snapshots/*.pt "$saved/snapshots"/
+      fi
       echo "$task: saved $(du -sh "$saved" | cut -f1) to $saved"
     done ;;
   evaluate)
