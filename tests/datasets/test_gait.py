@@ -17,16 +17,6 @@ QUADRUPEDS = ("UnitreeA1", "UnitreeGo1")
 GOAL_SPEED = 0.5
 
 
-@pytest.fixture(scope="module")
-def envs():
-    cache = {}
-
-    def get(task_id):
-        if task_id not in cache:
-            cache[task_id] = make(task_id)
-        return cache[task_id]
-    return get
-
 
 def seed_with_command(env, lo, hi):
     """The first reset seed whose sampled direction lies in [lo, hi] (radians)."""

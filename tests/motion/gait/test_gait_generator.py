@@ -6,23 +6,12 @@ import mujoco
 import numpy as np
 import pytest
 
-from loco_il.environments.registry import make
 from loco_il.motion.gait import (GaitParams, PhaseOscillators, TrotController, leg_fk, leg_ik, leg_jacobian,
                                  quadruped_legs)
 from loco_il.motion.gait.cpg import swing_position
 
 QUADRUPEDS = ("UnitreeA1", "UnitreeGo1")
 
-
-@pytest.fixture(scope="module")
-def envs():
-    cache = {}
-
-    def get(task_id):
-        if task_id not in cache:
-            cache[task_id] = make(task_id)
-        return cache[task_id]
-    return get
 
 
 # ----------------------------------------------------------------------------- kinematics
