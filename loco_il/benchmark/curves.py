@@ -13,7 +13,7 @@ from loco_il.evaluation.leaderboard import mean_ci
 
 
 def _curve(res: CellResult) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    from loco_il.experiment.logging import read_csv
+    from loco_il.utils.fileio import read_csv
     key = "normalized_score" if res.metric == NORMALIZED else "eval_return_mean"
     per_step: dict[float, list[float]] = {}
     for run in res.runs:

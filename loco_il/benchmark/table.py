@@ -58,7 +58,7 @@ def score_at(log_rows: Sequence[dict[str, Any]], step: int, window: int, metric:
 
 def cell_result(proto: Protocol, cell: Cell, states: Sequence[RunState], blocked: str | None,
                 published: Sequence[dict[str, Any]], results_dir: Path) -> CellResult:
-    from loco_il.experiment.logging import read_csv
+    from loco_il.utils.fileio import read_csv
     res = CellResult(cell, list(states), blocked=blocked,
                      command=commands.cell_command(proto, cell, results_dir=results_dir))
     for st in states:
