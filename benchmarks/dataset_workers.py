@@ -35,7 +35,8 @@ def main(argv: list[str] | None = None) -> int:
     import torch
     torch.set_num_threads(1)
     from loco_il.datasets.providers import rollout_workers
-    from loco_il.datasets.providers.expert import episode_seeds, generation_env, rollout
+    from loco_il.datasets.providers.expert import generation_env, rollout
+    from loco_il.environments.episodes import episode_seeds
     from loco_il.environments.registry import make, task_key
     from loco_il.experts.files import load_policy
 

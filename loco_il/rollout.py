@@ -1,5 +1,6 @@
 """Roll out a policy (random by default, or an expert file) on a Task-ID, print returns, optionally write an mp4
-and a strip of frames.
+and a strip of frames. The episodes are those of `loco_il.environments.episodes.run_episode`; episode k starts
+from reset seed ``--seed`` + k.
 
     python -m loco_il.rollout --task Hopper.run.perfect --episodes 3 --video rollout.mp4
     python -m loco_il.rollout --task Atlas.walk.perfect --expert runs/experts/Atlas.walk/seed0/best.pt \
@@ -28,36 +29,30 @@ def main(argv: list[str] | None = None) -> None:
     os.environ.setdefault("MUJOCO_GL", "egl")
 
     from loco_il import LocoEnv
+    from loco_il.environments.episodes import UniformRandomPolicy, run_episode
     from loco_il.environments.rendering import record_episode
 
     env = LocoEnv.make(args.task, seed=args.seed)
     print(f"{env.task_id}: obs dim {env.obs_spec.dim}, action dim {env.info.action_space.shape[0]}, "
           f"control dt {env.dt:.4f} s, horizon {env.info.horizon}")
-    rng = np.random.default_rng(args.seed)
-    policy = None
+    expert = None
     if args.expert:
         from loco_il.experts import load_expert
-        policy = load_expert(args.expert)
+        expert = load_expert(args.expert)
+    # the random policy's stream runs on over the episodes (the recorded one draws from its own)
+    policy = expert if expert is not None else UniformRandomPolicy(env.info.action_space.shape,
+                                                                   np.random.default_rng(args.seed))
     returns = []
     for episode in range(args.episodes):
         start = time.perf_counter()
         if episode == 0 and (args.video or args.strip):
-            result = record_episode(env, policy, args.video, max_steps=args.max_steps, seed=args.seed,
+            result = record_episode(env, expert, args.video, max_steps=args.max_steps, seed=args.seed,
                                     strip=args.strip, strip_frames=args.strip_frames)
             total, steps = result["return"], result["steps"]
             print("wrote " + ", ".join(p for p in (result["path"], result["strip"]) if p))
         else:
-            env.seed(args.seed + episode)
-            obs = env.reset()
-            if hasattr(policy, "start_episode"):
-                policy.start_episode(env, args.seed + episode)
-            total, steps = 0.0, 0
-            for steps in range(1, (args.max_steps or env.info.horizon) + 1):
-                action = policy(obs) if policy is not None else rng.uniform(-1, 1, env.info.action_space.shape)
-                obs, reward, absorbing, _ = env.step(action)
-                total += reward
-                if absorbing:
-                    break
+            ran = run_episode(env, policy, args.seed + episode, args.max_steps or env.info.horizon)
+            total, steps = ran.ret, ran.length
         returns.append(total)
         print(f"episode {episode}: return {total:.2f} over {steps} steps ({time.perf_counter() - start:.2f} s)")
     who = args.expert or "random policy"

@@ -96,42 +96,35 @@ def normalized_score(task_id: str, ret: Any, path: str | Path | None = None) -> 
 # ----------------------------------------------------------------------------- measuring
 
 
-class _UniformRandomPolicy:
-    """Uniform random actions in [-1, 1] from one generator (a random policy's baseline)."""
-
-    def __init__(self, act_dim: int, rng: np.random.Generator):
-        self.act_dim, self.rng = act_dim, rng
-
-    def __call__(self, obs: np.ndarray) -> np.ndarray:
-        return self.rng.uniform(-1.0, 1.0, self.act_dim)
-
-
 def evaluate(task_id: str, policy: Callable[[np.ndarray], np.ndarray] | None, episodes: int, seed: int,
              log: Callable[[str], None] | None = None, details: bool = False,
              env_kwargs: Mapping[str, Any] | None = None) -> dict[str, Any]:
     """Mean/std return of a deterministic policy (None = uniform random actions in [-1, 1]) over
     ``episodes`` episodes whose reset seeds come from ``episode_seeds(seed, episodes)``, rolled out as the
-    datasets are (`rollout_episode`: the policy's optional ``start_episode(env, seed)`` hook is called after
-    every reset). ``details``: also per-episode ``returns``, ``lengths``, ``terminated`` (ended by a fall or
-    divergence before the horizon) and ``forward_speed`` (mean x velocity of the task's velocity point, m/s).
+    datasets are (`loco_il.environments.episodes.run_episode` with ``record=True, clip=True``: the policy's
+    optional ``start_episode(env, seed)`` hook is called after every reset). ``details``: also per-episode
+    ``returns``, ``lengths``, ``terminated`` (ended by a fall or divergence before the horizon) and
+    ``forward_speed`` (mean x velocity of the task's velocity point, m/s).
     ``env_kwargs`` go to the env (e.g. ``init_state_sampler``: other start states)."""
-    from loco_il.datasets.providers.expert import episode_seeds, rollout_episode
+    from loco_il.environments.episodes import Episode, UniformRandomPolicy, episode_seeds, run_episodes
     from loco_il.environments.registry import make
     env = make(f"{_key(task_id)}.{_any_dataset(task_id)}", **dict(env_kwargs or {}))
     if policy is None:
-        policy = _UniformRandomPolicy(int(env.model.nu), np.random.default_rng(seed))
-    horizon = int(env.info.horizon)
+        policy = UniformRandomPolicy(int(env.model.nu), np.random.default_rng(seed))
     returns, lengths, terminated, speeds = [], [], [], []
+
+    def measure(i: int, ep: Episode) -> None:
+        returns.append(float(np.sum(ep.rewards)))     # as the datasets sum an episode's rewards
+        lengths.append(ep.length)
+        terminated.append(ep.terminated)
+        speeds.append(ep.forward_speed(env.dt))
+        if log:
+            log(f"[baselines] {task_id}: episode {i + 1}/{episodes} return {returns[-1]:.2f} "
+                f"length {lengths[-1]} speed {speeds[-1]:.3f} m/s")
+
     try:
-        for i, s in enumerate(episode_seeds(seed, episodes)):
-            ep = rollout_episode(env, policy, int(s), horizon, i)
-            returns.append(float(np.sum(ep["rewards"])))
-            lengths.append(len(ep["rewards"]))
-            terminated.append(bool(ep["absorbing"]))
-            speeds.append(float(ep["xy_end"][0] - ep["xy_start"][0]) / (lengths[-1] * env.dt))
-            if log:
-                log(f"[baselines] {task_id}: episode {i + 1}/{episodes} return {returns[-1]:.2f} "
-                    f"length {lengths[-1]} speed {speeds[-1]:.3f} m/s")
+        run_episodes(env, policy, episode_seeds(seed, episodes), int(env.info.horizon), record=True, clip=True,
+                     on_episode=measure)
     finally:
         env.stop()
     out = {"return_mean": float(np.mean(returns)), "return_std": float(np.std(returns)), "episodes": int(episodes),

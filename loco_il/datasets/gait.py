@@ -46,10 +46,10 @@ import numpy as np
 
 from loco_il.datasets.providers.cache import (cache_key, datasets_cache_dir, init_states_path, regenerate_hint,
                                               safe_name, save_to_cache)
-from loco_il.datasets.providers.expert import episode_seeds
 from loco_il.datasets.providers.init_states import InitStates
 from loco_il.datasets.providers.registry import ProviderUnavailableError
 from loco_il.datasets.trajectory import DatasetError, Trajectories
+from loco_il.environments.episodes import episode_seeds
 from loco_il.environments.registry import make
 from loco_il.motion.gait.controller import ControllerParams, TrotController, wrap_angle
 from loco_il.motion.gait.quadruped import goal_speed, is_quadruped, model_fingerprint

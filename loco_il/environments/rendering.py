@@ -8,6 +8,8 @@ from typing import TYPE_CHECKING, Callable
 import mujoco
 import numpy as np
 
+from loco_il.environments.episodes import UniformRandomPolicy, run_episode
+
 if TYPE_CHECKING:
     from loco_il.environments.base import LocoEnv
 
@@ -45,32 +47,23 @@ def render_frame(env: "LocoEnv") -> np.ndarray | None:
 def record_episode(env: "LocoEnv", policy: Callable[[np.ndarray], np.ndarray] | None, path: str | os.PathLike | None,
                    max_steps: int | None = None, fps: int | None = None, seed: int = 0,
                    strip: str | os.PathLike | None = None, strip_frames: int = 6) -> dict:
-    """Run one episode from `env.seed(seed); env.reset()` (random actions if `policy` is None; a policy's
-    `start_episode(env, seed)` hook is called after the reset, as in dataset rollouts), write an mp4 to `path` and/or
-    a PNG strip of `strip_frames` evenly spaced frames to `strip`; return {'return', 'steps', 'path', 'strip'}."""
+    """Run one episode from `env.seed(seed); env.reset()` (`loco_il.environments.episodes.run_episode`: random
+    actions if `policy` is None; a policy's `start_episode(env, seed)` hook is called after the reset), write an mp4
+    to `path` and/or a PNG strip of `strip_frames` evenly spaced frames to `strip`; return
+    {'return', 'steps', 'path', 'strip'}."""
     import imageio
 
+    if policy is None:
+        policy = UniformRandomPolicy(env.info.action_space.shape, np.random.default_rng(seed))
+    frames: list[np.ndarray] = []
     previous = env.render_mode
     env.render_mode = "rgb_array"
-    env.seed(seed)
-    obs = env.reset()
-    hook = getattr(policy, "start_episode", None)
-    if callable(hook):
-        hook(env, seed)
-    frames, total, steps = [env.render()], 0.0, 0
-    limit = max_steps or env.info.horizon
-    rng = np.random.default_rng(seed)
-    try:
-        for steps in range(1, limit + 1):
-            action = policy(obs) if policy is not None else rng.uniform(-1, 1, env.info.action_space.shape)
-            obs, reward, absorbing, _ = env.step(action)
-            total += reward
-            frames.append(env.render())
-            if absorbing:
-                break
+    try:       # a frame of the start state and one after every step
+        episode = run_episode(env, policy, seed, max_steps or env.info.horizon,
+                              on_state=lambda e: frames.append(e.render()))
     finally:
         env.render_mode = previous
-    out = {"return": total, "steps": steps, "path": None, "strip": None}
+    out = {"return": episode.ret, "steps": episode.length, "path": None, "strip": None}
     if path is not None:
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)

@@ -2,7 +2,8 @@
 
 * **Return**: mean ± std over `episodes` evaluation episodes of the deterministic policy (the Gaussian's
   mean), with the task's own reward. Episode i starts from `env.seed(episode_seeds(seed, n)[i]); env.reset()`
-  (the seeding of `loco_il.datasets.baselines`), so every evaluation of every run sees the same starts.
+  (the seeding of the datasets and `loco_il.datasets.baselines`; the loop of `loco_il.environments.episodes`),
+  so every evaluation of every run sees the same starts.
 * **Normalized score**: `(return - random) / (expert - random)` with the returns recorded in
   `loco_il/datasets/baselines.yaml` (0 = uniform random actions, 1 = the task's shipped expert). When the
   task lacks either part, the score is None and `normalized_score_note` says how to measure it.
@@ -22,41 +23,28 @@ from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
+from loco_il.environments.episodes import episode_seeds, outcome_arrays, run_episodes
+
 
 # ----------------------------------------------------------------------------- rollouts
 def evaluate_policy(env: Any, policy: Callable[[np.ndarray], np.ndarray], episodes: int, seed: int = 1000,
                     collect_obs: bool = False) -> dict[str, Any]:
-    """Run `episodes` episodes of `policy` (obs -> action) in `env`; returns, lengths (and visited obs).
+    """Run `episodes` episodes of `policy` (obs -> action) in `env` (`loco_il.environments.episodes.run_episode`);
+    returns, lengths (and visited obs).
 
     `terminated` counts the episodes that ended in a terminal state before the horizon (on the locomotion
     tasks, a fall), so a low mean can be told apart as a few falls or a worse gait throughout."""
-    from loco_il.datasets.providers.expert import episode_seeds
-    returns, lengths, observations, starts = [], [], [], []
-    terminated = 0
-    horizon = int(env.info.horizon)
-    for s in episode_seeds(seed, episodes):
-        env.seed(int(s))
-        obs = env.reset()
-        starts.append(np.asarray(obs, dtype=np.float64).tobytes())
-        total, t = 0.0, 0
-        for t in range(1, horizon + 1):
-            if collect_obs:
-                observations.append(np.asarray(obs, dtype=np.float64))
-            obs, reward, absorbing, _ = env.step(np.asarray(policy(obs), dtype=np.float64))
-            total += float(reward)
-            if absorbing:
-                terminated += 1
-                break
-        returns.append(total)
-        lengths.append(t)
+    runs = run_episodes(env, policy, episode_seeds(seed, episodes), int(env.info.horizon), record=collect_obs)
+    returns, lengths, terminated = outcome_arrays([ep.outcome for ep in runs])
     # episodes are identical only when their starts are too: equal returns from different starts (every
     # episode balancing to the horizon) are distinct episodes, not a sign of a start without reset noise
-    outcomes = {(start, round(r, 9), n) for start, r, n in zip(starts, returns, lengths)}
-    out = {"returns": returns, "lengths": lengths, "episodes": int(episodes), "eval_seed": int(seed),
-           "return_mean": float(np.mean(returns)), "return_std": float(np.std(returns)),
-           "length_mean": float(np.mean(lengths)), "terminated": terminated, "distinct_episodes": len(outcomes)}
+    outcomes = {(ep.start_obs.tobytes(), round(ep.ret, 9), ep.length) for ep in runs}
+    out = {"returns": returns.tolist(), "lengths": lengths.tolist(), "episodes": int(episodes),
+           "eval_seed": int(seed), "return_mean": float(np.mean(returns)), "return_std": float(np.std(returns)),
+           "length_mean": float(np.mean(lengths)), "terminated": int(terminated.sum()),
+           "distinct_episodes": len(outcomes)}
     if collect_obs:
-        out["obs"] = np.asarray(observations)
+        out["obs"] = np.concatenate([ep.obs for ep in runs])
     return out
 
 

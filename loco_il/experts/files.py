@@ -12,9 +12,10 @@ built-in expert (`loco_il.experts.registry`).
 **Policy interface.** ``policy(obs) -> action`` and ``policy.checksum() -> str``; optional ``obs_dim``,
 ``act_dim``, ``metadata``, ``description`` (a one-line name for logs and ``info``) and
 ``start_episode(env, seed)``: called right after ``env.seed(seed); env.reset()`` of every episode, before
-the first call, with the env being rolled out. A policy that needs the simulator state (not only the
-observation) reads ``env.model`` / ``env.data`` there and in its calls, but never writes to them (so the
-recorded actions replay exactly); anything it draws at random comes from ``seed``.
+the first call, with the env being rolled out (by the episode loop, `loco_il.environments.episodes`). A policy
+that needs the simulator state (not only the observation) reads ``env.model`` / ``env.data`` there and in its
+calls, but never writes to them (so the recorded actions replay exactly); anything it draws at random comes
+from ``seed``.
 """
 from __future__ import annotations
 

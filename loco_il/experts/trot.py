@@ -151,7 +151,7 @@ class TrotExpert:
     def __call__(self, obs: np.ndarray) -> np.ndarray:
         if self._ctl is None:
             raise RuntimeError("TrotExpert follows the simulator state: call start_episode(env, seed) after "
-                               "env.reset() (the dataset rollouts and baselines.evaluate do)")
+                               "env.reset() (loco_il.environments.episodes.run_episode does)")
         self._sync()
         ctl = self._ctl
         action = np.zeros(self.act_dim)

@@ -7,7 +7,11 @@
   returned observation is the next episode's first one and the real last observation is in
   `infos["final_obs"][i]` (needed to bootstrap V(s_T) on truncation).
 * `evaluate(act_fn, vec_env, episodes, seed)`: evaluation episodes spread over the envs of an
-  auto-resetting vector env, reproducible given the seed.
+  auto-resetting vector env, reproducible given the seed. This is the one episode loop kept apart from
+  `loco_il.environments.episodes`: it steps all envs in lockstep with one batched policy call per step (and,
+  async, the envs in parallel processes), which the trainers' frequent evaluations need; running the episodes
+  one at a time would call the network once per env and step. It shares the per-episode outcome
+  (`Outcome`, `outcome_arrays`).
 
 Each env is a `LocoGymEnv` behind `_LeanEnv`, which drops the per-step `info` dict (reward terms
 are not needed for training, and passing them between processes costs time) and, once an episode
@@ -25,6 +29,8 @@ from typing import Any, Callable, Mapping
 import gymnasium as gym
 import numpy as np
 from gymnasium.vector import AsyncVectorEnv, AutoresetMode, SyncVectorEnv, VectorEnv
+
+from loco_il.environments.episodes import Outcome, outcome_arrays
 
 
 class _LeanEnv(gym.Wrapper):
@@ -120,7 +126,7 @@ def evaluate_episodes(act_fn: Callable[[np.ndarray], np.ndarray], vec_env: Vecto
     than truncated at the time limit."""
     n = vec_env.num_envs
     quota = np.array([episodes // n + (1 if i < episodes % n else 0) for i in range(n)])
-    done: list[list[tuple[float, int, bool]]] = [[] for _ in range(n)]
+    done: list[list[Outcome]] = [[] for _ in range(n)]
     obs, _ = vec_env.reset(seed=[seed + i for i in range(n)])
     ret, length = np.zeros(n), np.zeros(n, dtype=np.int64)
     while any(len(done[i]) < quota[i] for i in range(n)):
@@ -132,8 +138,6 @@ def evaluate_episodes(act_fn: Callable[[np.ndarray], np.ndarray], vec_env: Vecto
         ended = terminated | np.asarray(truncated)
         for i in np.flatnonzero(ended):
             if len(done[i]) < quota[i]:
-                done[i].append((float(ret[i]), int(length[i]), bool(terminated[i])))
+                done[i].append(Outcome(float(ret[i]), int(length[i]), bool(terminated[i])))
         ret[ended], length[ended] = 0.0, 0
-    ordered = [done[k % n][k // n] for k in range(episodes)]
-    return (np.array([e[0] for e in ordered]), np.array([e[1] for e in ordered], dtype=np.int64),
-            np.array([e[2] for e in ordered], dtype=bool))
+    return outcome_arrays([done[k % n][k // n] for k in range(episodes)])

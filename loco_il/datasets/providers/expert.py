@@ -6,6 +6,7 @@ task's *built-in* expert (a model-based controller that needs no weights, e.g. t
 controller); `loco_il.experts.files` finds and loads it, and states the policy interface. Episode ``i``
 starts from ``env.seed(episode_seeds(seed, n)[i]); env.reset()``: the seeds are derived from one base seed
 (``numpy.random.SeedSequence(seed, spawn_key=(i,))``), so asking for more episodes only appends.
+Episodes are run by the one episode loop, `loco_il.environments.episodes` (`rollout_episode`).
 The recorded actions are exactly the ones passed to ``env.step`` (clipped to [-1, 1] *before*
 recording, so a replay is exact), rewards are the task's default reward, ``absorbing`` marks a
 termination (fall or divergence) and ``last`` also marks the time limit.
@@ -47,6 +48,8 @@ from loco_il.datasets.providers.cache import (UNCACHED, cache_key, cache_unwrita
                                               warn_uncached)
 from loco_il.datasets.providers.init_states import InitStates
 from loco_il.datasets.trajectory import Trajectories
+from loco_il.environments.episodes import (Episode, Policy, episode_seeds, replay_episode, run_episode,
+                                           run_episodes, start_episode)
 from loco_il.environments.registry import make, task_key
 from loco_il.experts.files import (MIN_PREFERENCE_LEVELS, NoExpertError, available_experts, available_snapshot_sets,
                                    find_snapshots, load_policy, policy_checksum)
@@ -63,8 +66,6 @@ SOURCE_PREFERENCE = "expert snapshot rollout"
 
 #: Counters for tests and diagnostics: "generated" (datasets rolled out), "cache_hits".
 STATS: collections.Counter = collections.Counter()
-
-Policy = Callable[[np.ndarray], np.ndarray]
 
 
 def _check_policy(policy: Any, key: str, obs_dim: int, act_dim: int, where: str) -> None:
@@ -97,62 +98,17 @@ def _expert_meta(policy: Any) -> dict[str, Any]:
 # ----------------------------------------------------------------------------- rollouts
 
 
-def episode_seeds(seed: int, n: int) -> np.ndarray:
-    """Reset seed of episode i: ``SeedSequence(seed, spawn_key=(i,))`` -> uint32; prefix-stable in n."""
-    return np.array([np.random.SeedSequence(int(seed), spawn_key=(i,)).generate_state(1, np.uint32)[0]
-                     for i in range(int(n))], dtype=np.int64)
-
-
 def _log_default(msg: str) -> None:
     print(msg, file=sys.stderr, flush=True)
 
 
-def start_episode(policy: Any, env: Any, seed: int) -> None:
-    """Call the policy's optional ``start_episode(env, seed)`` hook (the policy interface: `loco_il.experts.files`)."""
-    hook = getattr(policy, "start_episode", None)
-    if callable(hook):
-        hook(env, int(seed))
-
-
-def _step_episode(env: Any, obs: np.ndarray, act: Callable[[np.ndarray, int], np.ndarray],
-                  n_steps: int) -> dict[str, np.ndarray]:
-    """Step ``env`` from ``obs`` with ``act(obs, t)`` for at most ``n_steps`` steps, stopping after an absorbing
-    one: the transitions (obs, actions, next_obs, rewards, absorbing per step). Shared by recording and replay."""
-    out: dict[str, list] = {"obs": [], "actions": [], "next_obs": [], "rewards": [], "absorbing": []}
-    for t in range(n_steps):
-        a = act(obs, t)
-        nobs, r, absorbing, _ = env.step(a)
-        for key, value in zip(out, (obs, a, nobs, r, absorbing)):
-            out[key].append(value)
-        obs = nobs
-        if absorbing:
-            break
-    return {k: np.asarray(v, dtype=bool if k == "absorbing" else np.float64) for k, v in out.items()}
-
-
-def rollout_episode(env: Any, policy: Policy, seed: int, horizon: int, index: int = 0) -> dict[str, Any]:
-    """One deterministic episode of ``policy`` from ``env.seed(seed); env.reset()``: its initial simulator
-    state, the transitions (obs, next_obs, actions, rewards), whether it ended in an absorbing state and the
-    horizontal position of the task's velocity point at its start and end (``xy_start``, ``xy_end``).
+def rollout_episode(env: Any, policy: Policy, seed: int, horizon: int) -> Episode:
+    """One deterministic episode of ``policy`` from ``env.seed(seed); env.reset()``, recorded as a dataset
+    records it (`loco_il.environments.episodes.run_episode` with ``record=True, clip=True``): its initial
+    simulator state, the transitions (obs, next_obs, actions, rewards), whether it ended in an absorbing state
+    and the horizontal position of the task's velocity point at its start and end (``xy_start``, ``xy_end``).
     Depends on nothing but the seed, so episodes can be recorded in any env of the task, in any order."""
-    nu = int(env.model.nu)
-
-    def act(obs: np.ndarray, t: int) -> np.ndarray:
-        a = np.asarray(policy(obs), dtype=np.float64).reshape(-1)
-        if a.shape != (nu,):
-            raise ValueError(f"the expert returned an action of shape {a.shape}, the env needs ({nu},)")
-        if not np.isfinite(a).all():
-            raise ValueError(f"the expert returned a non-finite action at step {t} of episode {index}: {a}")
-        return np.clip(a, -1.0, 1.0)   # what env.step applies anyway: record exactly what was executed
-
-    env.seed(int(seed))
-    obs = env.reset()
-    qpos, qvel = env.get_sim_state()
-    xy_start = env.horizontal_position()
-    start_episode(policy, env, int(seed))
-    steps = _step_episode(env, obs, act, horizon)
-    return {"qpos": np.asarray(qpos), "qvel": np.asarray(qvel), **steps, "absorbing": bool(steps["absorbing"][-1]),
-            "xy_start": xy_start, "xy_end": env.horizontal_position()}
+    return run_episode(env, policy, seed, horizon, record=True, clip=True)
 
 
 def rollout(env: Any, policy: Policy, seeds: Sequence[int], *, info: Mapping[str, Any] | None = None,
@@ -174,11 +130,11 @@ def rollout(env: Any, policy: Policy, seeds: Sequence[int], *, info: Mapping[str
     t0 = time.perf_counter()
     returns: list[float] = []
 
-    def progress(i: int, episode: Mapping[str, Any]) -> None:
-        returns.append(float(np.sum(episode["rewards"])))
+    def progress(i: int, episode: Episode) -> None:
+        returns.append(float(np.sum(episode.rewards)))
         if log is not None and ((i + 1) % every == 0 or i + 1 == n):
             log(f"[loco_il.datasets] {label}: episode {i + 1}/{n}, return {returns[-1]:.2f}, "
-                f"length {len(episode['rewards'])}, mean return {np.mean(returns):.2f}, "
+                f"length {episode.length}, mean return {np.mean(returns):.2f}, "
                 f"{time.perf_counter() - t0:.1f}s")
 
     episodes = None
@@ -186,49 +142,29 @@ def rollout(env: Any, policy: Policy, seeds: Sequence[int], *, info: Mapping[str
         from loco_il.datasets.providers.rollout_workers import record_in_workers
         episodes = record_in_workers(env, policy, seeds, horizon, int(workers), on_episode=progress, log=log)
     if episodes is None:     # one process, or a policy that cannot be sent to workers
-        episodes = []
-        for i, s in enumerate(seeds):
-            episodes.append(rollout_episode(env, policy, int(s), horizon, i))
-            progress(i, episodes[-1])
+        episodes = run_episodes(env, policy, seeds, horizon, record=True, clip=True, on_episode=progress)
     return assemble_episodes(episodes, seeds, info)
 
 
-def assemble_episodes(episodes: Sequence[Mapping[str, Any]], seeds: Sequence[int],
+def assemble_episodes(episodes: Sequence[Episode], seeds: Sequence[int],
                       info: Mapping[str, Any] | None = None) -> tuple[Trajectories, InitStates]:
     """The dataset and initial states of recorded episodes (`rollout_episode`), in the order given."""
-    lengths = [len(ep["rewards"]) for ep in episodes]
+    lengths = [ep.length for ep in episodes]
     ends = np.cumsum(lengths) - 1
     last = np.zeros(sum(lengths), dtype=bool)
     last[ends] = True
     absorbing = np.zeros_like(last)
-    absorbing[ends] = [ep["absorbing"] for ep in episodes]    # only an episode's last step can be absorbing
-    returns = [float(np.sum(ep["rewards"])) for ep in episodes]
+    absorbing[ends] = [ep.terminated for ep in episodes]    # only an episode's last step can be absorbing
+    returns = [float(np.sum(ep.rewards)) for ep in episodes]
     info = dict(info or {})
     info.update(episode_returns=returns, expert_return_mean=float(np.mean(returns)),
                 expert_return_std=float(np.std(returns)), n_episodes=len(episodes),
                 mean_episode_length=float(np.mean(lengths)))
-    columns = [np.concatenate([ep[k] for ep in episodes]) for k in ("obs", "next_obs", "actions", "rewards")]
+    columns = [np.concatenate([getattr(ep, k) for ep in episodes]) for k in ("obs", "next_obs", "actions", "rewards")]
     data = Trajectories(*columns, absorbing, last, info)
-    init = InitStates(np.asarray([ep["qpos"] for ep in episodes]), np.asarray([ep["qvel"] for ep in episodes]),
+    init = InitStates(np.asarray([ep.qpos for ep in episodes]), np.asarray([ep.qvel for ep in episodes]),
                       np.asarray(seeds, dtype=np.int64))
     return data, init
-
-
-def replay_episode(env: Any, qpos: np.ndarray, qvel: np.ndarray, actions: np.ndarray,
-                   seed: int | None = None) -> dict[str, np.ndarray]:
-    """Replay recorded actions from a stored initial state; returns obs, next_obs, rewards, absorbing.
-
-    With ``seed`` the env is first reset with that seed (reproducing a sampled task command and the
-    env's random stream); the simulator is then put in ``(qpos, qvel)``. ``env`` must emit the same
-    observations as the generation env (no ``.pomdp``).
-    """
-    if seed is not None and int(seed) >= 0:
-        env.seed(int(seed))
-    env.reset()
-    obs = env.set_sim_state(np.asarray(qpos, dtype=np.float64), np.asarray(qvel, dtype=np.float64))
-    actions = np.asarray(actions)
-    steps = _step_episode(env, obs, lambda _, t: actions[t], len(actions))
-    return {k: steps[k] for k in ("obs", "next_obs", "rewards", "absorbing")}
 
 
 # ----------------------------------------------------------------------------- generation and cache

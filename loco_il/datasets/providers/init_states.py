@@ -4,7 +4,7 @@
 ``qvel``) and the episode's reset seed are kept in :class:`InitStates`, saved next to the dataset as
 ``<name>.init_states.npz`` (`loco_il.datasets.providers.cache.init_states_path`). Replaying episode ``i`` from
 ``(qpos[i], qvel[i])`` with its recorded actions reproduces its observations exactly
-(`loco_il.datasets.providers.expert.replay_episode`; tasks with a sampled command also need the reset seed,
+(`loco_il.environments.episodes.replay_episode`; tasks with a sampled command also need the reset seed,
 which replays the command).
 
 `dataset_init_state_sampler` turns them (or the states of a full-observation dataset) into an env's

@@ -22,9 +22,10 @@ from __future__ import annotations
 import multiprocessing
 import pickle
 from concurrent.futures import ProcessPoolExecutor
-from typing import Any, Callable, Mapping, Sequence
+from typing import Any, Callable, Sequence
 
 from loco_il.datasets.providers.expert import rollout_episode
+from loco_il.environments.episodes import Episode
 
 # "forkserver" or "spawn"; read at each call (the benchmark sets it to compare the two)
 START_METHOD = "forkserver" if "forkserver" in multiprocessing.get_all_start_methods() else "spawn"
@@ -50,14 +51,13 @@ def _start_worker(task_id: str, policy_bytes: bytes, horizon: int, shape: tuple[
     _HORIZON = horizon
 
 
-def _record(job: tuple[int, int]) -> dict[str, Any]:
-    index, seed = job
-    return rollout_episode(_ENV, _POLICY, seed, _HORIZON, index)
+def _record(seed: int) -> Episode:
+    return rollout_episode(_ENV, _POLICY, seed, _HORIZON)
 
 
 def record_in_workers(env: Any, policy: Any, seeds: Sequence[int], horizon: int, workers: int, *,
-                      on_episode: Callable[[int, Mapping[str, Any]], None] | None = None,
-                      log: Callable[[str], None] | None = None) -> list[dict[str, Any]] | None:
+                      on_episode: Callable[[int, Episode], None] | None = None,
+                      log: Callable[[str], None] | None = None) -> list[Episode] | None:
     """`rollout_episode` for every seed, in up to ``workers`` processes; the episodes in seed order, or None
     (after saying why through ``log``) when the policy cannot be sent to another process: the caller then
     records them itself. ``on_episode(i, episode)`` is called in order as they arrive (progress output)."""
@@ -72,7 +72,7 @@ def record_in_workers(env: Any, policy: Any, seeds: Sequence[int], horizon: int,
     shape = (int(env.info.observation_space.shape[0]), int(env.model.nu))
     if log is not None:
         log(f"[loco_il.datasets] recording {len(seeds)} episodes in {n_procs} worker processes")
-    jobs = [(i, int(s)) for i, s in enumerate(seeds)]
+    jobs = [int(s) for s in seeds]
     with ProcessPoolExecutor(n_procs, mp_context=_context(), initializer=_start_worker,
                              initargs=(env.task_id, policy_bytes, int(horizon), shape)) as pool:
         out = []

@@ -69,7 +69,7 @@ class TrackingExpert:
             noise_scale: float = 1.0) -> np.ndarray:
         if self._env is None:
             raise RuntimeError("TrackingExpert follows the simulator state: call start_episode(env, seed) after "
-                               "env.reset() (dataset rollouts and `python -m loco_il.experts eval` do)")
+                               "env.reset() (loco_il.environments.episodes.run_episode does)")
         obs = np.asarray(obs, dtype=np.float64)
         if obs.shape != (self.obs_dim,):
             raise ValueError(f"expert expects one observation of size {self.obs_dim}, got shape {obs.shape}")
