@@ -4,10 +4,11 @@
     python -m loco_il.evaluation record run_dir=... out=video.mp4
     python -m loco_il.evaluation.leaderboard results/
 
-Modules: `evaluate` (rollouts, scores, trajectory similarity, tables; the metrics are defined in its docstring),
-`runs` (scoring a run dir), `leaderboard` and `progress` (tables over many run dirs).
+The metrics themselves (rollouts, scores, trajectory similarity, tables; defined in its docstring) live in
+`loco_il.experiment.scoring`, below this package, since the runner scores its runs as they train; they are
+re-exported here. Modules: `runs` (scoring a run dir), `leaderboard` and `progress` (tables over many run dirs).
 """
-from loco_il.evaluation.evaluate import (evaluate_agent, evaluate_averaged_actor, evaluate_policy, format_eval_table,
+from loco_il.experiment.scoring import (evaluate_agent, evaluate_averaged_actor, evaluate_policy, format_eval_table,
                                          identical_episodes_note, mmd, nn_distance, normalized, trajectory_similarity)
 from loco_il.evaluation.runs import (RunFileError, evaluate_run, expert_observations, load_final_agent,
                                      load_run_agent, load_run_config, record_run)

@@ -7,7 +7,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from loco_il.evaluation.evaluate import evaluate_agent, normalized, trajectory_similarity
+from loco_il.experiment.scoring import evaluate_agent, normalized, trajectory_similarity
 
 
 def load_run_config(run_dir: str | Path) -> dict:

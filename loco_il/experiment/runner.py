@@ -464,7 +464,7 @@ class Runner:
             self._stop_if_asked(stop, step)
 
     def _log_evaluation(self, row: dict) -> None:
-        from loco_il.evaluation import identical_episodes_note
+        from loco_il.experiment.scoring import identical_episodes_note
         self.counters["n_evals"] += 1
         self.logger.log(row)
         score, ema = row.get("normalized_score"), row.get("normalized_score_ema")
@@ -538,7 +538,7 @@ class Runner:
         return done, dict(info)
 
     def _evaluate_row(self, wall: float, sps: float, fit_info: dict) -> dict:
-        from loco_il.evaluation import evaluate_agent, evaluate_averaged_actor, normalized
+        from loco_il.experiment.scoring import evaluate_agent, evaluate_averaged_actor, normalized
         ev, counters = self.eval_cfg, self.counters
         eval_args = (int(ev.get("episodes", 5)), int(ev.get("seed", 1000)), bool(ev.get("deterministic", True)))
         res = evaluate_agent(self.agent, self.eval_env, *eval_args)
@@ -566,7 +566,7 @@ class Runner:
     def _finish(self) -> dict:
         """The final evaluation (with trajectory similarity), `final_agent.pt` and `eval.json`."""
         from loco_il.environments.registry import task_key
-        from loco_il.evaluation import evaluate_agent, evaluate_averaged_actor, normalized, trajectory_similarity
+        from loco_il.experiment.scoring import evaluate_agent, evaluate_averaged_actor, normalized, trajectory_similarity
         agent, eval_env, counters, wall = self.agent, self.eval_env, self.counters, self.clock()
         ev = self.eval_cfg
         sim_on = bool(ev.get("similarity", True))
@@ -611,7 +611,7 @@ class Runner:
 
     @staticmethod
     def _print_table(result: Mapping[str, Any]) -> None:
-        from loco_il.evaluation import format_eval_table
+        from loco_il.experiment.scoring import format_eval_table
         print("\nFinal evaluation\n" + format_eval_table([result]), flush=True)
 
 
