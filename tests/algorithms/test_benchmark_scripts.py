@@ -45,6 +45,7 @@ def test_q_gap_is_zero_or_less_at_the_critics_maximum_and_positive_away_from_it(
     assert torch.allclose(gap_at_worst, (1 + best.abs()).pow(2).sum(-1), atol=0.05)
 
 
+@pytest.mark.slow
 def test_il_speed_runs_and_compares_each_agent_with_the_bare_update_of_its_critic():
     out = subprocess.run([sys.executable, str(BENCHMARKS / "il_speed.py"), "--updates", "1", "--reps", "1",
                           "--offpolicy", "lsiq", "lsiqfo", "sqil", "--critic-layer-norm", "--unshared-forward",

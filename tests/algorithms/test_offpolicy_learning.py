@@ -25,6 +25,8 @@ from loco_il.algorithms.iq_learn import IQLearn
 from loco_il.algorithms.lsiq import LSIQ, LSIQfO
 from loco_il.algorithms.sqil import SQIL
 
+pytestmark = pytest.mark.slow      # learning tests: the full suite (CI) runs them; -m "not slow" skips them
+
 ACTION_SCALE = 3.0                                  # force range [-3, 3] <-> normalized action [-1, 1]
 EXPERT_GAINS = np.array([1.0, 10.0, 1.0, 1.0])      # obs = [cart pos, pole angle, cart vel, pole ang. vel]
 EXPERT_NOISE = 0.2

@@ -29,6 +29,8 @@ from loco_il.algorithms.gaifo import GAIfO
 from loco_il.algorithms.gail import GAIL
 from loco_il.algorithms.vail import VAIL
 
+pytestmark = pytest.mark.slow      # learning tests: the full suite (CI) runs them; -m "not slow" skips them
+
 torch.set_num_threads(1)
 
 K_FORCE = np.array([1.0, 10.0, 1.0, 1.0])  # u = K obs balances InvertedPendulum (checked: 1000/1000 steps)

@@ -9,6 +9,8 @@ from mushroom_rl.core import Agent, Core
 from loco_il import LocoEnv
 from loco_il.environments.registry import bodies
 
+pytestmark = pytest.mark.slow      # every task: the full suite (CI) runs them; -m "not slow" skips them
+
 ALL_TASKS = LocoEnv.get_all_task_names()
 
 

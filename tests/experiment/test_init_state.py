@@ -73,6 +73,7 @@ def test_runs_checkpointed_before_init_state_existed_still_resume():
     assert config_differences(old, {**old, "init_state": "dataset"}) == ["init_state: 'default' -> 'dataset'"]
 
 
+@pytest.mark.slow
 def test_train_py_with_dataset_start_states(env_vars, tmp_path):
     results = tmp_path / "results"
     proc = train(env_vars, results, "algo=sqil", "init_state=dataset", "n_steps=600", "eval.every=300",

@@ -7,8 +7,11 @@ import json
 import os
 
 import numpy as np
+import pytest
 
 from train_helpers import ROOT, train  # tests/ is on sys.path
+
+pytestmark = pytest.mark.slow      # a subprocess run of train.py: the full suite (CI) runs them; -m "not slow" skips them
 
 TASK = "Atlas.walk.perfect"
 

@@ -17,6 +17,8 @@ import pytest
 import torch
 from train_helpers import FAST, ROOT, TASK, csv_rows, make_env_vars, run_dir, train  # tests/ is on sys.path
 
+pytestmark = pytest.mark.slow      # subprocess runs of train.py: the full suite (CI) runs them; -m "not slow" skips them
+
 #: a tiny GAIL: small networks, short on-policy batches
 TINY_GAIL = ["algo=gail", "algo.core.n_steps_per_fit=200", "algo.policy.hidden=[32,32]",
              "algo.params.disc_hidden=[32]", "algo.params.vf_hidden=[32]", "algo.params.disc_batch_size=200",

@@ -172,6 +172,7 @@ def test_sigterm_stops_after_the_iteration_with_a_checkpoint(tmp_path):
 
 
 # ---------------------------------------------------------------------------- learning
+@pytest.mark.slow
 def test_ppo_learns_inverted_pendulum(tmp_path):
     cfg = small_cfg(tmp_path, total_steps=12288, lr=1e-3, num_steps=256, minibatch_size=64, epochs=10,
                     eval_episodes=10, eval_envs=10)
@@ -234,6 +235,7 @@ def test_evaluate_episodes_tells_falls_from_time_limits():
 
 
 # ---------------------------------------------------------------------------- CLI
+@pytest.mark.slow
 def test_cli_train_and_eval(tmp_path):
     env = dict(os.environ, PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""))
     out = tmp_path / "tmp"

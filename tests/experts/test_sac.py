@@ -139,6 +139,7 @@ def test_expert_file_is_the_squashed_deterministic_policy(tmp_path):
     np.testing.assert_array_equal(noisy, expert.act(obs, deterministic=False, rng=np.random.default_rng(1)))
 
 
+@pytest.mark.slow
 def test_sac_learns_inverted_pendulum(tmp_path):
     random_return = load_baselines()["InvertedPendulum.balance"]["random"]["return_mean"]
     cfg = small_cfg(tmp_path, total_steps=3000, random_steps=500, learning_starts=500, batch_size=256,
@@ -147,6 +148,7 @@ def test_sac_learns_inverted_pendulum(tmp_path):
     assert summary["best_eval_return"] >= 5 * random_return, (summary, random_return)
 
 
+@pytest.mark.slow
 def test_keep_eval_policies_saves_every_evaluated_policy(tmp_path):
     # SAC iterates ~1000 env steps at a time: 2100 steps with eval_interval 1000 evaluate at 1000, 2000, 2100
     SACTrainer(small_cfg(tmp_path, total_steps=2100, hidden=(8, 8), eval_interval=1000, keep_eval_policies=True),

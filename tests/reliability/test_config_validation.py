@@ -82,12 +82,14 @@ def _one_line_exit_2(proc: subprocess.CompletedProcess, message: str) -> None:
     ("seed=abc", "seed='abc': expected an integer"),
     ("device=gpu", "device=gpu: not a torch device"),
 ])
+@pytest.mark.slow
 def test_train_py_refuses_before_making_the_run_dir(env_vars, tmp_path, override, message):
     proc = train(env_vars, tmp_path / "r", "algo=bc", override, check=False, timeout=120)
     _one_line_exit_2(proc, message)
     assert not (tmp_path / "r" / TASK).exists()
 
 
+@pytest.mark.slow
 def test_train_py_with_a_read_only_results_dir(env_vars, tmp_path, make_read_only):
     from conftest import read_only
     from train_helpers import train_command
