@@ -59,7 +59,7 @@ from mushroom_rl.utils.spaces import Box
 
 from loco_il.algorithms.factory import build_agent
 from loco_il.algorithms.common.cuda_graph import GraphedStep, make_capturable
-from loco_il.algorithms.common.networks import EnsembleQ, GaussianPolicy, mlp
+from loco_il.rl.networks import EnsembleQ, GaussianPolicy, mlp
 
 ROOT = Path(__file__).resolve().parents[1]
 OBS_DIM, ACT_DIM = 11, 3  # Hopper

@@ -26,7 +26,7 @@ from typing import Any, Mapping
 from loco_il.algorithms.common.ablations import ABLATION_NAMES, split_ablations
 from loco_il.algorithms.common.agent_base import ALGORITHMS, ILAgent
 from loco_il.algorithms.common.agent_base import get_algorithm as _get_registered
-from loco_il.algorithms.common.networks import GaussianPolicy
+from loco_il.rl.networks import GaussianPolicy
 from loco_il.utils.plain import to_plain
 
 #: default training budget when an algorithm config gives none

@@ -52,7 +52,7 @@ from typing import Sequence
 import torch
 from torch import nn
 
-from .common.networks import mlp
+from loco_il.rl.networks import mlp
 from .common.sac import OffPolicyILAgent
 
 

@@ -28,7 +28,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from loco_il.algorithms.common.networks import GaussianPolicy
+from loco_il.rl.networks import GaussianPolicy
 from loco_il.utils.atomic import atomic_torch_save
 from loco_il.utils.plain import to_plain
 

@@ -45,7 +45,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from loco_il.algorithms.common.networks import GaussianPolicy, mlp
+from loco_il.rl.networks import GaussianPolicy, mlp
 from loco_il.experts.policy import ACTIVATIONS, ExpertPolicy, normalize_obs
 from loco_il.experts.trainer import CommonConfig, ExpertTrainer, resolve_device  # noqa: F401 (re-exported)
 

@@ -1,6 +1,6 @@
 """SAC for training experts on the tasks where PPO is too sample-hungry for our budgets (HalfCheetah, Ant, Humanoid).
 
-The learner is the project's shared SAC core (`loco_il.algorithms.common.sac.SACCore`: twin critic, target
+The learner is the project's shared SAC core (`loco_il.rl.sac.SACCore`: twin critic, target
 critic, tanh-squashed Gaussian actor, learned temperature), trained here on the environment's reward with
 the soft Bellman target of Haarnoja et al. 2018 ("Soft Actor-Critic Algorithms and Applications",
 arXiv:1812.05905):
@@ -46,9 +46,9 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 import torch
 
-from loco_il.algorithms.common.networks import GaussianPolicy
-from loco_il.algorithms.common.replay import TransitionBuffer
-from loco_il.algorithms.common.sac import SACCore
+from loco_il.rl.networks import GaussianPolicy
+from loco_il.rl.replay import TransitionBuffer
+from loco_il.rl.sac import SACCore
 from loco_il.experts.policy import ACTIVATIONS, ExpertPolicy, load_expert
 from loco_il.experts.trainer import CommonConfig, ExpertTrainer
 

@@ -20,7 +20,7 @@ import torch
 from mushroom_rl.core import Core
 
 from loco_il import LocoEnv
-from loco_il.algorithms.common.networks import GaussianPolicy
+from loco_il.rl.networks import GaussianPolicy
 from loco_il.algorithms.iq_learn import IQLearn
 from loco_il.algorithms.lsiq import LSIQ, LSIQfO
 from loco_il.algorithms.sqil import SQIL

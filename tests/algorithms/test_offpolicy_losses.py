@@ -13,14 +13,14 @@ from torch import nn
 
 from loco_il.algorithms.common.ablations import Ablations
 from loco_il.algorithms.common.agent_base import ALGORITHMS, get_algorithm
-from loco_il.algorithms.common.networks import EnsembleQ, GaussianPolicy
-from loco_il.algorithms.common.replay import TransitionBuffer
-from loco_il.algorithms.common.sac import (SACCore, actor_loss, bc_regularized_actor_loss, conservative_penalty,
-                                          polyak_update, temperature_loss)
 from loco_il.algorithms.iq_learn import IQLearn, iq_critic_loss
 from loco_il.algorithms.lsiq import (LSIQ, LSIQfO, lsiq_bounds, lsiq_critic_loss, lsiq_fixed_expert_loss,
                                      lsiq_targets)
 from loco_il.algorithms.sqil import SQIL, sqil_critic_loss, sqil_rewards
+from loco_il.rl.networks import EnsembleQ, GaussianPolicy
+from loco_il.rl.replay import TransitionBuffer
+from loco_il.rl.sac import (SACCore, actor_loss, bc_regularized_actor_loss, conservative_penalty, polyak_update,
+                            temperature_loss)
 
 torch.set_num_threads(1)
 T = lambda *x: torch.tensor(x, dtype=torch.float32)  # noqa: E731

@@ -14,7 +14,7 @@ from torch import nn
 from torch.nn.utils import parameters_to_vector
 
 from loco_il.algorithms.common import onpolicy
-from loco_il.algorithms.common.networks import GaussianPolicy, MLPLinearization, NumpyMLP, mlp
+from loco_il.rl.networks import GaussianPolicy, MLPLinearization, NumpyMLP, mlp
 from loco_il.algorithms.common.onpolicy import ObsNormalizedPolicy, gaussian_kl, trpo_step
 from loco_il.algorithms.gail import GAIL
 from loco_il.algorithms.sqil import SQIL

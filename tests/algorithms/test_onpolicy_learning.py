@@ -24,7 +24,7 @@ from mushroom_rl.core import Core, MDPInfo
 from mushroom_rl.utils.spaces import Box
 
 from loco_il.algorithms.bc import BC
-from loco_il.algorithms.common.networks import GaussianPolicy
+from loco_il.rl.networks import GaussianPolicy
 from loco_il.algorithms.gaifo import GAIfO
 from loco_il.algorithms.gail import GAIL
 from loco_il.algorithms.vail import VAIL

@@ -14,7 +14,7 @@ from loco_il.algorithms.bc import BC, bc_loss
 from loco_il.algorithms.common.discriminator import (Discriminator, RunningNormalizer, VariationalDiscriminator,
                                                      discriminator_loss, gail_reward, vail_beta_update, vail_kl,
                                                      vail_loss)
-from loco_il.algorithms.common.networks import GaussianPolicy
+from loco_il.rl.networks import GaussianPolicy
 from loco_il.algorithms.common.onpolicy import (ObsNormalizedPolicy, conjugate_gradient, gae, gaussian_kl,
                                                 surrogate, trpo_step)
 from loco_il.algorithms.gaifo import GAIfO

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import torch
 
-from loco_il.algorithms.common.networks import GaussianPolicy
+from loco_il.rl.networks import GaussianPolicy
 from loco_il.datasets.baselines import load_baselines
 from loco_il.experts import load_expert
 from loco_il.experts.sac import SACTrainer, init_actor_output, soft_td_target, twin_critic_loss

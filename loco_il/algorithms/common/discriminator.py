@@ -24,7 +24,7 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
-from loco_il.algorithms.common.networks import mlp
+from loco_il.rl.networks import mlp
 
 
 # ---------------------------------------------------------------------------- normalizer

@@ -25,7 +25,7 @@ from torch import nn
 from torch.nn.utils import parameters_to_vector, vector_to_parameters
 
 from loco_il.algorithms.common.discriminator import RunningNormalizer
-from loco_il.algorithms.common.networks import GaussianPolicy, MLPLinearization, mlp, numpy_view
+from loco_il.rl.networks import GaussianPolicy, MLPLinearization, mlp, numpy_view
 
 
 class ObsNormalizedPolicy(nn.Module):
