@@ -51,6 +51,14 @@ def _key(task_id: str) -> str:
     return task_key(task_id)
 
 
+def evaluate(task_id: str, policy: Callable[[np.ndarray], np.ndarray] | None, episodes: int, seed: int,
+             log: Callable[[str], None] | None = None, details: bool = False,
+             env_kwargs: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    """`loco_il.environments.episodes.evaluate_task` (the baselines' measurement, also `experts eval`'s)."""
+    from loco_il.environments.episodes import evaluate_task
+    return evaluate_task(task_id, policy, episodes, seed, log=log, details=details, env_kwargs=env_kwargs)
+
+
 def load_baselines(path: str | Path | None = None) -> dict[str, dict[str, Any]]:
     """All entries: ``{"<Body>.<task>": {"random": {...}, "expert": {...}, "datasets": {...}}}``."""
     import yaml
@@ -94,50 +102,6 @@ def normalized_score(task_id: str, ret: Any, path: str | Path | None = None) -> 
 
 
 # ----------------------------------------------------------------------------- measuring
-
-
-def evaluate(task_id: str, policy: Callable[[np.ndarray], np.ndarray] | None, episodes: int, seed: int,
-             log: Callable[[str], None] | None = None, details: bool = False,
-             env_kwargs: Mapping[str, Any] | None = None) -> dict[str, Any]:
-    """Mean/std return of a deterministic policy (None = uniform random actions in [-1, 1]) over
-    ``episodes`` episodes whose reset seeds come from ``episode_seeds(seed, episodes)``, rolled out as the
-    datasets are (`loco_il.environments.episodes.run_episode` with ``record=True, clip=True``: the policy's
-    optional ``start_episode(env, seed)`` hook is called after every reset). ``details``: also per-episode
-    ``returns``, ``lengths``, ``terminated`` (ended by a fall or divergence before the horizon) and
-    ``forward_speed`` (mean x velocity of the task's velocity point, m/s).
-    ``env_kwargs`` go to the env (e.g. ``init_state_sampler``: other start states)."""
-    from loco_il.environments.episodes import Episode, UniformRandomPolicy, episode_seeds, run_episodes
-    from loco_il.environments.registry import make
-    env = make(f"{_key(task_id)}.{_any_dataset(task_id)}", **dict(env_kwargs or {}))
-    if policy is None:
-        policy = UniformRandomPolicy(int(env.model.nu), np.random.default_rng(seed))
-    returns, lengths, terminated, speeds = [], [], [], []
-
-    def measure(i: int, ep: Episode) -> None:
-        returns.append(float(np.sum(ep.rewards)))     # as the datasets sum an episode's rewards
-        lengths.append(ep.length)
-        terminated.append(ep.terminated)
-        speeds.append(ep.forward_speed(env.dt))
-        if log:
-            log(f"[baselines] {task_id}: episode {i + 1}/{episodes} return {returns[-1]:.2f} "
-                f"length {lengths[-1]} speed {speeds[-1]:.3f} m/s")
-
-    try:
-        run_episodes(env, policy, episode_seeds(seed, episodes), int(env.info.horizon), record=True, clip=True,
-                     on_episode=measure)
-    finally:
-        env.stop()
-    out = {"return_mean": float(np.mean(returns)), "return_std": float(np.std(returns)), "episodes": int(episodes),
-           "seed": int(seed), "mean_episode_length": float(np.mean(lengths))}
-    if details:
-        out.update(returns=returns, lengths=lengths, terminated=terminated, forward_speed=speeds)
-    return out
-
-
-def _any_dataset(task_id: str) -> str:
-    from loco_il.environments.registry import get_body
-    body = get_body(_key(task_id).split(".")[0].split("-")[0])
-    return body.default_dataset
 
 
 def _provenance(command: str) -> dict[str, Any]:

@@ -11,7 +11,7 @@ per reset seed, `episode_seeds` gives the reset seeds every dataset, evaluation 
 
 * ``record``: keep every transition (obs, action, next obs) and the start state (qpos, qvel and the horizontal
   position of the task's velocity point, also at the end, for the forward speed). Datasets
-  (`loco_il.datasets.providers.expert.rollout_episode`), baselines (`loco_il.datasets.baselines.evaluate`)
+  (`loco_il.datasets.providers.expert.rollout_episode`), baselines and `experts eval` (`evaluate_task`)
   and the evaluation's visited states (`loco_il.evaluation.evaluate_policy` with ``collect_obs``).
 * ``clip``: check each action (size, finite) and clip it to [-1, 1] before stepping, so a recorded action is
   exactly the executed one and a bad expert is named as the culprit (datasets, baselines).
@@ -28,7 +28,7 @@ instead and shares only the per-episode outcome (`Outcome`, `outcome_arrays`).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Callable, NamedTuple, Sequence
+from typing import Any, Callable, Mapping, NamedTuple, Sequence
 
 import numpy as np
 
@@ -221,3 +221,42 @@ def _checked_actions(policy: Policy, act_dim: int, seed: int) -> Act:
 
 __all__ = ["Episode", "Outcome", "UniformRandomPolicy", "episode_seeds", "outcome_arrays", "replay_episode",
            "run_episode", "run_episodes", "start_episode"]
+
+
+def evaluate_task(task_id: str, policy: Callable[[np.ndarray], np.ndarray] | None, episodes: int, seed: int,
+                  log: Callable[[str], None] | None = None, details: bool = False,
+                  env_kwargs: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    """Mean/std return of a deterministic policy (None = uniform random actions in [-1, 1]) over
+    ``episodes`` episodes whose reset seeds come from ``episode_seeds(seed, episodes)``, rolled out as the
+    datasets are (`run_episode` with ``record=True, clip=True``: the policy's
+    optional ``start_episode(env, seed)`` hook is called after every reset). ``details``: also per-episode
+    ``returns``, ``lengths``, ``terminated`` (ended by a fall or divergence before the horizon) and
+    ``forward_speed`` (mean x velocity of the task's velocity point, m/s).
+    ``env_kwargs`` go to the env (e.g. ``init_state_sampler``: other start states)."""
+    from loco_il.environments.registry import get_body, make, task_key
+    key = task_key(task_id)
+    body = get_body(key.split(".")[0].split("-")[0])
+    env = make(f"{key}.{body.default_dataset}", **dict(env_kwargs or {}))
+    if policy is None:
+        policy = UniformRandomPolicy(int(env.model.nu), np.random.default_rng(seed))
+    returns, lengths, terminated, speeds = [], [], [], []
+
+    def measure(i: int, ep: Episode) -> None:
+        returns.append(float(np.sum(ep.rewards)))     # as the datasets sum an episode's rewards
+        lengths.append(ep.length)
+        terminated.append(ep.terminated)
+        speeds.append(ep.forward_speed(env.dt))
+        if log:
+            log(f"[baselines] {task_id}: episode {i + 1}/{episodes} return {returns[-1]:.2f} "
+                f"length {lengths[-1]} speed {speeds[-1]:.3f} m/s")
+
+    try:
+        run_episodes(env, policy, episode_seeds(seed, episodes), int(env.info.horizon), record=True, clip=True,
+                     on_episode=measure)
+    finally:
+        env.stop()
+    out = {"return_mean": float(np.mean(returns)), "return_std": float(np.std(returns)), "episodes": int(episodes),
+           "seed": int(seed), "mean_episode_length": float(np.mean(lengths))}
+    if details:
+        out.update(returns=returns, lengths=lengths, terminated=terminated, forward_speed=speeds)
+    return out

@@ -150,7 +150,7 @@ def _evaluate_env_expert(expert: Any, path: Path, task: str, episodes: int, seed
     Reports returns, terminations (falls) and the mean forward speed against the task's target speed."""
     import numpy as np
 
-    from loco_il.datasets.baselines import evaluate
+    from loco_il.environments.episodes import evaluate_task as evaluate
     from loco_il.environments.registry import make
     if starts not in STARTS:
         raise SystemExit(f"starts must be one of {', '.join(STARTS)}; got {starts!r}")
