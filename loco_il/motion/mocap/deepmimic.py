@@ -89,7 +89,7 @@ DEEPMIMIC_NAME_MAP = {
 
 #: The ``humanoid3d`` character, ``(name, type, parent name, attach offset (x, y, z) in
 #: metres, DeepMimic axes)``.  Numbers from DeepMimic's ``data/characters/humanoid3d.txt``
-#: (MIT licence), as shipped in ``shared/mocap/deepmimic/humanoid3d_character.txt``.
+#: (MIT licence), as shipped in ``loco_il/motion/mocap/data/deepmimic/humanoid3d_character.txt``.
 HUMANOID3D_JOINTS = (
     ("root", "none", None, (0.0, 0.0, 0.0)),
     ("chest", "spherical", "root", (0.0, 0.236151, 0.0)),

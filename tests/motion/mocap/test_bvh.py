@@ -275,7 +275,7 @@ def test_name_map_applied(tmp_path):
 
 
 # ---------------------------------------------------------------------------
-# Real CMU files from ../shared/mocap
+# Real CMU files from the package data (loco_il/motion/mocap/data)
 # ---------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def cmu_walk():

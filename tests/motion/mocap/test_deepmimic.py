@@ -168,7 +168,7 @@ def test_builtin_skeleton_matches_documented_numbers():
 
 
 # ---------------------------------------------------------------------------
-# Real DeepMimic files from ../shared/mocap
+# Real DeepMimic files from the package data (loco_il/motion/mocap/data)
 # ---------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def walk():
