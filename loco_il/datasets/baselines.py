@@ -32,6 +32,8 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
+from loco_il.environments.episodes import evaluate_task
+
 BASELINES_FILE = Path(__file__).with_name("baselines.yaml")
 FORMAT = 1
 _HEADER = ("# Reference returns per task, written by `python -m loco_il.datasets.baselines update ...`.\n"
@@ -46,17 +48,13 @@ class BaselineMissingError(KeyError):
         return str(self.args[0])
 
 
+#: the baselines' measurement (also `python -m loco_il.experts eval`'s): the shared episode loop's task evaluation
+evaluate = evaluate_task
+
+
 def _key(task_id: str) -> str:
     from loco_il.environments.registry import task_key
     return task_key(task_id)
-
-
-def evaluate(task_id: str, policy: Callable[[np.ndarray], np.ndarray] | None, episodes: int, seed: int,
-             log: Callable[[str], None] | None = None, details: bool = False,
-             env_kwargs: Mapping[str, Any] | None = None) -> dict[str, Any]:
-    """`loco_il.environments.episodes.evaluate_task` (the baselines' measurement, also `experts eval`'s)."""
-    from loco_il.environments.episodes import evaluate_task
-    return evaluate_task(task_id, policy, episodes, seed, log=log, details=details, env_kwargs=env_kwargs)
 
 
 def load_baselines(path: str | Path | None = None) -> dict[str, dict[str, Any]]:

@@ -150,7 +150,7 @@ def _evaluate_env_expert(expert: Any, path: Path, task: str, episodes: int, seed
     Reports returns, terminations (falls) and the mean forward speed against the task's target speed."""
     import numpy as np
 
-    from loco_il.environments.episodes import evaluate_task as evaluate
+    from loco_il.environments.episodes import evaluate_task
     from loco_il.environments.registry import make
     if starts not in STARTS:
         raise SystemExit(f"starts must be one of {', '.join(STARTS)}; got {starts!r}")
@@ -158,7 +158,7 @@ def _evaluate_env_expert(expert: Any, path: Path, task: str, episodes: int, seed
     if starts != "env" and sampler is None:
         raise SystemExit(f"{path} has no reference motion; use starts=env")
     n_env = {"env": episodes, "reference": 0, "both": (episodes + 1) // 2}[starts]
-    parts = [evaluate(task, expert, n, seed, details=True, env_kwargs=kwargs)
+    parts = [evaluate_task(task, expert, n, seed, details=True, env_kwargs=kwargs)
              for n, kwargs in ((n_env, {}), (episodes - n_env, {"init_state_sampler": sampler and sampler()}))
              if n > 0]
     keys = ("returns", "lengths", "terminated", "forward_speed")
