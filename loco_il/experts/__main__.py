@@ -212,7 +212,7 @@ def tune_main(argv: list[str]) -> None:
     if not isinstance(expert, TrackingExpert):
         raise SystemExit(f"{path} is not a tracking expert; only tracking experts have deployment settings")
     try:
-        tuned = expert.with_settings(**{k: float(v) for k, v in args.items()})
+        tuned = expert.with_settings(**{k: None if v.lower() in ("none", "null") else v for k, v in args.items()})
     except ValueError as err:
         raise SystemExit(f"[loco_il] error: {err}") from None
     print(json.dumps({"path": path, "out": out, "changes": args, "checksum": tuned.save(out)}), flush=True)

@@ -21,9 +21,9 @@ def test_small_protocol_is_the_documented_grid():
     assert set(by_part["perfect"].labels) == {"gail", "vail", "gaifo", "iqlearn", "lsiq", "sqil", "bc",
                                               "lsiq_mixture_2critics_ln"}
     assert {"Hopper.run", "Walker2d.run", "HalfCheetah.run", "Ant.run", "Humanoid.run", "UnitreeA1.simple",
-            "Atlas.walk", "Talos.walk", "UnitreeG1.walk", "HumanoidTorque.walk"} == set(by_part["perfect"].tasks)
+            "Atlas.walk", "Talos.walk", "UnitreeG1.walk", "HumanoidTorque.walk", "UnitreeH1.walk"} == set(by_part["perfect"].tasks)
     cells = all_cells(proto)
-    assert len(cells) == 7 * 4 + 10 * 8 + 10 * 8
+    assert len(cells) == 7 * 4 + 11 * 8 + 11 * 8
     assert {c.family.name: c.budget for c in cells} == {"onpolicy": 1_000_000, "sac": 200_000, "offline": 100_000}
     held = next(c for c in cells if c.label == "lsiq_mixture_2critics_ln")
     assert held.algo == "lsiq" and dict(held.overrides)["algo.params.critic_layer_norm"] is True

@@ -47,6 +47,7 @@ def test_preference_levels_are_ranked(task, ranked):
 def test_baselines_record_the_shipped_experts():
     for task, floor in [("Hopper.run", 3000), ("Walker2d.run", 4000), ("HalfCheetah.run", 9000), ("Ant.run", 4000),
                         ("Humanoid.run", 5000), ("Atlas.walk", 900), ("Talos.walk", 900),
-                        ("UnitreeG1.walk", 900), ("HumanoidTorque.walk", 900)]:
+                        ("UnitreeG1.walk", 900), ("HumanoidTorque.walk", 900),
+                        ("UnitreeH1.walk", 900)]:
         base = get_baseline(task)
         assert base["expert"]["return_mean"] > floor > base["random"]["return_mean"]

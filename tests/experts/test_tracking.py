@@ -199,6 +199,40 @@ def test_speed_gain_speeds_the_clock_up_slowly_and_is_a_deployment_setting(env, 
         base.with_settings(kp_angle=0.5)
 
 
+def test_start_phase_picks_one_of_the_two_phases_a_standing_pose_matches(env, reference):
+    """A noisy standing pose is about as near the two double-support phases (half a period apart): the nearest
+    phase alternates between them with the reset noise, `start_phase` fixes one; reference poses keep their own
+    phase whatever is preferred, and the setting is a deployment one (None: not in the checksum)."""
+    from loco_il.experts.policy import ExpertPolicy
+    from loco_il.experts.tracking.expert import TrackingExpert
+    nearest, preferred = [], {0.45: [], 0.95: []}
+    for seed in range(20):
+        env.seed(seed)
+        env.reset()
+        nearest.append(reference.nearest_phase(env.data.qpos))
+        for prefer, got in preferred.items():
+            got.append(reference.nearest_phase(env.data.qpos, prefer=prefer))
+    first, second = min(nearest), max(nearest)
+    assert second - first == pytest.approx(0.5, abs=0.05)
+    assert sum(abs(p - first) < 0.03 for p in nearest) >= 3 and sum(abs(p - second) < 0.03 for p in nearest) >= 3
+    assert max(abs(np.array(preferred[0.45]) - first)) < 0.03 and max(abs(np.array(preferred[0.95]) - second)) < 0.03
+    for k in range(0, reference.samples, 7):
+        assert reference.nearest_phase(reference.qpos[k], prefer=(k / reference.samples + 0.5) % 1.0) \
+            == k / reference.samples
+
+    controller = TrackingController.for_model(env.model, reference, TrackingSettings(start_phase=0.95), env.dt)
+    assert controller.start_phase_of(env.data.qpos) == preferred[0.95][-1]
+    assert "start_phase" not in dict(TrackingSettings().digest_items())
+    policy = ExpertPolicy(env.info.observation_space.shape[0] + PHASE_FEATURES, env.model.nu, hidden=(8,))
+    base = TrackingExpert(policy, TrackingController.for_model(env.model, reference, TrackingSettings(), env.dt))
+    tuned = base.with_settings(start_phase=0.95)
+    assert tuned.controller.start_phase_of(env.data.qpos) == preferred[0.95][-1]
+    assert tuned.checksum() != base.checksum()
+    assert base.with_settings(start_phase=None).checksum() == base.checksum()
+    with pytest.raises(ValueError, match="start_phase must be a phase in"):
+        base.with_settings(start_phase=1.5)
+
+
 @pytest.fixture(scope="module")
 def trained(tmp_path_factory):
     """A tiny tracking run (2 iterations): files, resume and the shipped expert's format."""

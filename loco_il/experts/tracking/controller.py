@@ -115,6 +115,11 @@ class TrackingController:
     def phase_step(self) -> float:
         return self.control_dt / self.reference.period
 
+    def start_phase_of(self, qpos: np.ndarray) -> float:
+        """The phase an episode starting in `qpos` (away from the reference) starts the clock at: the nearest one,
+        or of two about equally near, the one nearer `settings.start_phase`."""
+        return self.reference.nearest_phase(qpos, prefer=self.settings.start_phase)
+
     def start(self, phase: float, data: mujoco.MjData) -> None:
         """Start the clock at `phase` in the state `data`: the PD targets begin at the start pose and velocities and
         blend into the reference over `ramp_time` seconds (a smoothstep of the start's offset from the reference,

@@ -62,7 +62,7 @@ class TrackingEnv(gym.Env):
             qvel = qvel + rng.uniform(-noise, noise, qvel.size)
             obs = env.reset(np.concatenate([qpos, qvel]))
         if phase is None:
-            phase = ref.nearest_phase(env.data.qpos)
+            phase = self.controller.start_phase_of(env.data.qpos)
         self.controller.start(phase, env.data)
         root = env.data.xpos[self.reward.root]
         self._anchor = root[:2] - ref.kinematics(phase)[0][:2]

@@ -50,11 +50,12 @@ class TrackingExpert:
 
     # ------------------------------------------------------------------ policy contract
     def start_episode(self, env: Any, seed: int) -> None:
-        """Follow `env` from its current (start) state: the clock starts at the nearest reference phase."""
+        """Follow `env` from its current (start) state: the clock starts at the nearest reference phase
+        (`TrackingController.start_phase_of`)."""
         if int(env.model.nu) != self.act_dim:
             raise ValueError(f"{env.task_id} has {env.model.nu} actuators; this expert was trained for {self.act_dim}")
         self._env = env
-        self.controller.start(self.controller.reference.nearest_phase(env.data.qpos), env.data)
+        self.controller.start(self.controller.start_phase_of(env.data.qpos), env.data)
 
     def reference_start_sampler(self) -> Callable[[np.random.Generator], tuple[np.ndarray, np.ndarray]]:
         """An env `init_state_sampler`: the reference state at a uniform random phase (evaluation from the
@@ -93,7 +94,15 @@ class TrackingExpert:
         if other:
             raise ValueError(f"cannot change {other} of a trained expert (they change its reference, gains or "
                              f"inputs: retrain); changeable: {list(TrackingSettings.DEPLOYMENT_FIELDS)}")
-        settings = dataclasses.replace(self.controller.settings, **{k: float(v) for k, v in changes.items()})
+        try:
+            values = {k: None if v is None else float(v) for k, v in changes.items()}
+        except (TypeError, ValueError):
+            raise ValueError(f"deployment settings are numbers (start_phase may be None), got {changes}") from None
+        if values.get("start_phase") is not None and not 0.0 <= values["start_phase"] < 1.0:
+            raise ValueError(f"start_phase must be a phase in [0, 1) or None, got {values['start_phase']}")
+        if any(v is None for k, v in values.items() if k != "start_phase"):
+            raise ValueError(f"only start_phase may be None, got {changes}")
+        settings = dataclasses.replace(self.controller.settings, **values)
         metadata = {k: v for k, v in self.metadata.items() if k not in ("checksum", "commit", "created")}
         metadata["derived_from"] = {"checksum": self.checksum(), "changes": dict(changes)}
         return TrackingExpert(self.policy, dataclasses.replace(self.controller, settings=settings), metadata)

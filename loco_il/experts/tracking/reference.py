@@ -27,6 +27,10 @@ import mujoco
 import numpy as np
 
 #: the keypoints whose bodies are the end-effectors of the tracking reward (feet: ankles and toes)
+#: a start pose matches two reference phases "about equally well" when their squared pose distances are within
+#: this ratio (ours: UnitreeH1's noisy standing starts are within 1.09 of both double-support phases; a pose on
+#: the reference is at distance 0 from its own phase and ~0.5 from any half a period away)
+START_TIE_RATIO = 1.25
 END_EFFECTOR_KEYPOINTS = ("l_ankle", "l_toe", "r_ankle", "r_toe")
 
 
@@ -98,11 +102,19 @@ class ReferenceMotion:
         quat = self._lerp(self.root_quat, i, w)
         return root, quat / np.linalg.norm(quat), self._lerp(self.ee_rel, i, w)
 
-    def nearest_phase(self, qpos: np.ndarray) -> float:
+    def nearest_phase(self, qpos: np.ndarray, prefer: float | None = None, tie_ratio: float = START_TIE_RATIO) -> float:
         """The phase in [0, 1) whose actuated-joint pose is closest to `qpos` (start phase of an episode that
-        did not start from the reference)."""
+        did not start from the reference). With `prefer`: of the local minima of the squared pose distance within
+        `tie_ratio` times the smallest, the one circularly nearest `prefer` (a pose between two reference poses
+        gets a fixed one of them; a pose on the reference, at distance 0, keeps its own phase)."""
         diff = self.qpos[:-1, self.actuated_qpos] - np.asarray(qpos)[self.actuated_qpos]
-        return float(np.argmin(np.einsum("ij,ij->i", diff, diff)) / self.samples)
+        dist = np.einsum("ij,ij->i", diff, diff)
+        if prefer is None:
+            return float(np.argmin(dist) / self.samples)
+        minima = (dist <= np.roll(dist, 1)) & (dist <= np.roll(dist, -1)) & (dist <= tie_ratio * dist.min())
+        candidates = np.flatnonzero(minima) / self.samples
+        gap = np.abs((candidates - prefer + 0.5) % 1.0 - 0.5)
+        return float(candidates[np.argmin(gap)])
 
     # ------------------------------------------------------------------ (de)serialization
     ARRAYS = ("qpos", "qvel", "drift", "ee_rel", "root_pos", "root_quat", "actuated_qpos", "actuated_qvel",

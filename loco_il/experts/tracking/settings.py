@@ -48,16 +48,21 @@ class TrackingSettings:
     #                              reference that much faster without retraining)
     speed_gain_time: float = 0.0  # s over which the gain rises from 1 (a smoothstep; slow, so that the start,
     #                              where a body falls if anything is new, sees the clock it was trained with)
+    start_phase: float | None = None  # a start pose that two reference phases match about equally well (a standing
+    #                              pose lies between the two double-support poses, half a period apart) starts the
+    #                              clock at the one nearer this phase; None: the nearest phase, which the reset
+    #                              noise then picks (ours: UnitreeH1 fell from 18 of 30 standing starts at one of
+    #                              its two start phases and from 0 of 30 at the other)
 
     #: what the shipped expert's actions depend on (fixed for a run); the other fields only shape training
     EXPERT_FIELDS = ("action_scale", "kp_angle", "damping_ratio", "ramp_time", "target_speed", "clock_ramp_time",
-                     "speed_gain", "speed_gain_time")
+                     "speed_gain", "speed_gain_time", "start_phase")
     #: expert fields a trained expert may change (`TrackingExpert.with_settings`): they shape only the phase clock
-    #: and the start's blend, not the reference, the gains or the policy's inputs
-    DEPLOYMENT_FIELDS = ("ramp_time", "clock_ramp_time", "speed_gain", "speed_gain_time")
+    #: (its start and rate) and the start's blend, not the reference, the gains or the policy's inputs
+    DEPLOYMENT_FIELDS = ("ramp_time", "clock_ramp_time", "speed_gain", "speed_gain_time", "start_phase")
     #: expert fields that enter an expert's checksum only when they differ from these values (fields added after
     #: experts were trained: their files keep their checksums)
-    DIGEST_DEFAULTS = {"clock_ramp_time": 0.0, "speed_gain": 1.0, "speed_gain_time": 0.0}
+    DIGEST_DEFAULTS = {"clock_ramp_time": 0.0, "speed_gain": 1.0, "speed_gain_time": 0.0, "start_phase": None}
 
     def digest_items(self) -> list[tuple[str, Any]]:
         """(name, value) of the expert fields that identify an expert (part of its checksum)."""
