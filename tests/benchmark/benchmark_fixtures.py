@@ -27,7 +27,7 @@ def tiny_protocol(**changes: Any) -> dict[str, Any]:
                      "sac": {"algos": ["lsiq"], "n_steps": 200, "eval_every": 100},
                      "offline": {"algos": ["bc"], "n_steps": 50, "eval_every": 10, "unit": "gradient"}},
         "variants": {"lsiq_twin": {"algo": "lsiq", "overrides": {"algo.params.n_critics": 2}}},
-        "parts": {"perfect": {"dataset": "perfect", "tasks": ["Hopper.run", "UnitreeH1.walk"],
+        "parts": {"perfect": {"dataset": "perfect", "tasks": ["Hopper.run", "UnitreeH1.run"],   # UnitreeH1.run: no expert
                               "algorithms": ["gail", "vail", "lsiq", "lsiq_twin", "bc"]},
                   "real": {"dataset": "real", "tasks": ["UnitreeH1.walk"], "algorithms": ["gail"]}},
     }

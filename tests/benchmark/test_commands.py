@@ -59,10 +59,10 @@ def test_dry_run_prints_the_sweeps(tmp_path, capsys):
 def test_dry_run_skips_blocked_cells_and_says_why(tmp_path, capsys, monkeypatch):
     monkeypatch.delenv("LOCO_IL_EXPERTS", raising=False)
     path = write_protocol(tmp_path, "tiny", tiny_protocol())
-    assert cli.main(["run", str(path), "--dry-run", "--results-dir", str(tmp_path), "--tasks", "UnitreeH1.walk.perfect"]) == 0
+    assert cli.main(["run", str(path), "--dry-run", "--results-dir", str(tmp_path), "--tasks", "UnitreeH1.run.perfect"]) == 0
     out = capsys.readouterr().out.splitlines()
     assert out[0].endswith("15 not started; 0 to run, 15 blocked")
-    assert out[1].startswith("[benchmark] skipped UnitreeH1.walk.perfect: no expert for UnitreeH1.walk: train one")
+    assert out[1].startswith("[benchmark] skipped UnitreeH1.run.perfect: no expert for UnitreeH1.run: train one")
     assert len(out) == 2
 
 

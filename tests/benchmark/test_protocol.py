@@ -118,17 +118,17 @@ def test_cell_expansion_and_selection(tmp_path):
     cells = select(proto)
     assert [c.key for c in cells] == [
         "Hopper.run.perfect/gail", "Hopper.run.perfect/vail", "Hopper.run.perfect/lsiq",
-        "Hopper.run.perfect/lsiq_twin", "Hopper.run.perfect/bc", "UnitreeH1.walk.perfect/gail",
-        "UnitreeH1.walk.perfect/vail", "UnitreeH1.walk.perfect/lsiq", "UnitreeH1.walk.perfect/lsiq_twin",
-        "UnitreeH1.walk.perfect/bc", "UnitreeH1.walk.real/gail"]
+        "Hopper.run.perfect/lsiq_twin", "Hopper.run.perfect/bc", "UnitreeH1.run.perfect/gail",
+        "UnitreeH1.run.perfect/vail", "UnitreeH1.run.perfect/lsiq", "UnitreeH1.run.perfect/lsiq_twin",
+        "UnitreeH1.run.perfect/bc", "UnitreeH1.walk.real/gail"]
     assert cells[0].run_dir(tmp_path, 2) == tmp_path / "Hopper.run.perfect" / "gail" / "seed2"
     assert cells[4].budget_label == "50 gradient steps" and cells[0].budget_label == "300 env steps"
     picked = select(proto, Selection(tasks=("Hopper.run",), algos=("lsiq",), seeds=(1,)))
     assert [(c.key, c.seeds) for c in picked] == [("Hopper.run.perfect/lsiq", (1,)),
                                                   ("Hopper.run.perfect/lsiq_twin", (1,))]
     assert [c.key for c in select(proto, Selection(datasets=("real",)))] == ["UnitreeH1.walk.real/gail"]
-    assert [c.key for c in select(proto, Selection(tasks=("UnitreeH1.walk.perfect",), algos=("lsiq_twin",)))] == [
-        "UnitreeH1.walk.perfect/lsiq_twin"]
+    assert [c.key for c in select(proto, Selection(tasks=("UnitreeH1.run.perfect",), algos=("lsiq_twin",)))] == [
+        "UnitreeH1.run.perfect/lsiq_twin"]
     with pytest.raises(ProtocolError, match="no task 'Walker2d.run' in protocol tiny"):
         select(proto, Selection(tasks=("Walker2d.run",)))
     with pytest.raises(ProtocolError, match="no seed 7 in protocol tiny; its seeds: 0, 1, 2"):

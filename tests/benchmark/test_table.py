@@ -30,7 +30,7 @@ def _ci(values):
 def grid(tmp_path, monkeypatch):
     """The tiny protocol with: Hopper gail complete (3 seeds; seed 2 evaluated at 104/208 as an on-policy run
     fitting in batches would be), Hopper bc 2 of 3 seeds (seed 2 unfinished), UnitreeH1 gail 1 seed (no expert
-    baseline: scored by return), a vail run of another budget, UnitreeH1.walk.perfect blocked (no expert)."""
+    baseline: scored by return), a vail run of another budget, UnitreeH1.run.perfect blocked (no expert)."""
     monkeypatch.delenv("LOCO_IL_EXPERTS", raising=False)
     path = write_protocol(tmp_path, "tiny", tiny_protocol())
     logs = tmp_path / "logs"
@@ -85,8 +85,8 @@ def test_table_rows_statistics_and_commands(grid, capsys):
             "task=Hopper.run.perfect algo=bc seed=2 ") in missing
     assert "| UnitreeH1.walk.real | gail | 1 2 | not started |" in missing
     assert "past the budget 300" in missing and "seeds 1 2: not started" in missing   # vail seed 0 trained to 5000
-    assert ("| UnitreeH1.walk.perfect | gail, vail, lsiq, lsiq_twin, bc | no expert for UnitreeH1.walk" in missing
-            and f"`python -m loco_il.benchmark run {path} --tasks UnitreeH1.walk.perfect` |" in missing)
+    assert ("| UnitreeH1.run.perfect | gail, vail, lsiq, lsiq_twin, bc | no expert for UnitreeH1.run" in missing
+            and f"`python -m loco_il.benchmark run {path} --tasks UnitreeH1.run.perfect` |" in missing)
     assert "Hopper.run.perfect | gail |" not in missing
     assert "## Estimated cost" in md and "of these, blocked until their dataset exists: 15 runs" in md
     assert sorted(p.name for p in (out / "curves" / "tiny").iterdir()) == ["Hopper.run.perfect.png",
@@ -110,7 +110,7 @@ def test_table_csv(grid):
     assert gail["seeds_finished"] == "0 1 2" and gail["metric"] == "normalized"
     assert rows[("UnitreeH1.walk.real", "gail")]["metric"] == "return"
     assert rows[("UnitreeH1.walk.real", "gail")]["missing_seeds"] == "1 2"
-    assert rows[("UnitreeH1.walk.perfect", "bc")]["blocked"].startswith("no expert for UnitreeH1.walk")
+    assert rows[("UnitreeH1.run.perfect", "bc")]["blocked"].startswith("no expert for UnitreeH1.run")
     assert not (out / "curves").exists()
 
 
