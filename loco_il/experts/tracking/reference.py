@@ -27,11 +27,11 @@ import mujoco
 import numpy as np
 
 #: the keypoints whose bodies are the end-effectors of the tracking reward (feet: ankles and toes)
+END_EFFECTOR_KEYPOINTS = ("l_ankle", "l_toe", "r_ankle", "r_toe")
 #: a start pose matches two reference phases "about equally well" when their squared pose distances are within
 #: this ratio (ours: UnitreeH1's noisy standing starts are within 1.09 of both double-support phases; a pose on
 #: the reference is at distance 0 from its own phase and ~0.5 from any half a period away)
 START_TIE_RATIO = 1.25
-END_EFFECTOR_KEYPOINTS = ("l_ankle", "l_toe", "r_ankle", "r_toe")
 
 
 @dataclass
