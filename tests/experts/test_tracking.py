@@ -231,6 +231,10 @@ def test_start_phase_picks_one_of_the_two_phases_a_standing_pose_matches(env, re
     assert base.with_settings(start_phase=None).checksum() == base.checksum()
     with pytest.raises(ValueError, match="start_phase must be a phase in"):
         base.with_settings(start_phase=1.5)
+    with pytest.raises(ValueError, match="start_phase must be a phase in"):
+        TrackingSettings(start_phase=1.0)                     # a training run's setting is checked as well
+    with pytest.raises(ValueError, match="deployment settings are numbers"):
+        base.with_settings(speed_gain=None)
 
 
 @pytest.fixture(scope="module")

@@ -94,14 +94,10 @@ class TrackingExpert:
         if other:
             raise ValueError(f"cannot change {other} of a trained expert (they change its reference, gains or "
                              f"inputs: retrain); changeable: {list(TrackingSettings.DEPLOYMENT_FIELDS)}")
-        try:
-            values = {k: None if v is None else float(v) for k, v in changes.items()}
+        try:      # numbers; start_phase may also be None (the nearest phase); the settings check their ranges
+            values = {k: None if v is None and k == "start_phase" else float(v) for k, v in changes.items()}
         except (TypeError, ValueError):
             raise ValueError(f"deployment settings are numbers (start_phase may be None), got {changes}") from None
-        if values.get("start_phase") is not None and not 0.0 <= values["start_phase"] < 1.0:
-            raise ValueError(f"start_phase must be a phase in [0, 1) or None, got {values['start_phase']}")
-        if any(v is None for k, v in values.items() if k != "start_phase"):
-            raise ValueError(f"only start_phase may be None, got {changes}")
         settings = dataclasses.replace(self.controller.settings, **values)
         metadata = {k: v for k, v in self.metadata.items() if k not in ("checksum", "commit", "created")}
         metadata["derived_from"] = {"checksum": self.checksum(), "changes": dict(changes)}

@@ -64,6 +64,10 @@ class TrackingSettings:
     #: experts were trained: their files keep their checksums)
     DIGEST_DEFAULTS = {"clock_ramp_time": 0.0, "speed_gain": 1.0, "speed_gain_time": 0.0, "start_phase": None}
 
+    def __post_init__(self) -> None:
+        if self.start_phase is not None and not 0.0 <= self.start_phase < 1.0:
+            raise ValueError(f"tracking.start_phase must be a phase in [0, 1) or null, got {self.start_phase}")
+
     def digest_items(self) -> list[tuple[str, Any]]:
         """(name, value) of the expert fields that identify an expert (part of its checksum)."""
         return [(k, getattr(self, k)) for k in self.EXPERT_FIELDS
