@@ -3,6 +3,7 @@
     python -m loco_il.benchmark run small --dry-run                 # what would run, as train.py commands
     python -m loco_il.benchmark run small --parts real --algos gail hydra/launcher=joblib hydra.launcher.n_jobs=2
     python -m loco_il.benchmark table small                         # benchmarks/leaderboard/small.md, .csv, curves
+    python -m loco_il.benchmark table small --readme README.md      # ... and the README's overview table
     python -m loco_il.benchmark cost small                          # estimated single-core hours per part
     python -m loco_il.benchmark prune small                         # delete finished runs' checkpoints
 """
@@ -54,6 +55,9 @@ def parsers() -> dict[str, argparse.ArgumentParser]:
     table.add_argument("--results-dir", default=None, help="run dirs elsewhere than the protocol's")
     table.add_argument("--out", default=None, help=f"output folder (default {paths.relative(paths.TABLE_DIR)})")
     table.add_argument("--no-plots", action="store_true", help="skip the learning-curve figures")
+    table.add_argument("--readme", default=None, metavar="PATH",
+                       help="also write the overview table into PATH between its '<!-- leaderboard:<protocol> -->' "
+                            "and '<!-- /leaderboard:<protocol> -->' lines (e.g. README.md)")
     est = argparse.ArgumentParser(prog=f"{prog} cost", description="Estimated single-core hours per part, from "
                                   "the costs measured in benchmarks/RESULTS.md.")
     est.add_argument("protocol")
@@ -113,26 +117,39 @@ def cmd_run(args: argparse.Namespace, echo=print) -> int:
 
 
 def cmd_table(args: argparse.Namespace, echo=print) -> int:
-    from loco_il.benchmark import curves, table
-    from loco_il.evaluation import leaderboard
+    from loco_il.benchmark import curves, overview, table
     from loco_il.utils.atomic import atomic_open
     proto = load_protocol(args.protocol)
     cells = select(proto)
     results_dir = Path(args.results_dir) if args.results_dir else proto.results_dir
-    published = leaderboard.load_published()
-    results = [table.cell_result(proto, c, [status.run_state(c, s, results_dir) for s in c.seeds],
-                                 availability.blocked_reason(c.task_id), published, results_dir) for c in cells]
+    results = table.results_of(proto, cells, results_dir)
     out = Path(args.out) if args.out else paths.TABLE_DIR
     figures: dict[str, str] = {}
     if not args.no_plots:
         folder = out / "curves" / proto.name
         figures = {t: str(p.relative_to(out)) for t, p in curves.plot_all(results, table.report_steps(proto),
                                                                            folder).items()}
-    md = table.markdown(proto, results, cost.summary_text(proto, cells), figures, results_dir)
+    headline = overview.matrix(proto, results)
+    readme_text = None
+    if args.readme:     # checked before anything is written: a README without markers leaves every file as it was
+        readme = Path(args.readme)
+        if not readme.is_file():
+            echo(f"[benchmark] error: --readme {readme}: no such file; give the README path, e.g. --readme README.md")
+            return 2
+        try:
+            readme_text = overview.replace_block(readme.read_text(), proto.name, headline, where=str(readme))
+        except overview.MarkerError as err:
+            echo(f"[benchmark] error: {err}")
+            return 2
+    md = table.markdown(proto, results, cost.summary_text(proto, cells), figures, results_dir, overview=headline)
     out.mkdir(parents=True, exist_ok=True)
     for suffix, text in ((".md", md), (".csv", table.to_csv(proto, results))):
         with atomic_open(out / f"{proto.name}{suffix}", "w") as fh:
             fh.write(text)
+    if readme_text is not None:
+        with atomic_open(args.readme, "w") as fh:
+            fh.write(readme_text)
+        echo(f"[benchmark] wrote the overview table into {args.readme}")
     done = sum(1 for r in results if r.runs)
     missing = sum(len(r.missing) for r in results)
     echo(f"[benchmark] wrote {out / proto.name}.md and .csv: {done} of {len(results)} cells with finished runs, "

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Sequence
 
+from loco_il.benchmark import paths
 from loco_il.benchmark.cells import Cell
 
 FINISHED, UNFINISHED, NEW, OVER, RUNNING = "finished", "unfinished", "not started", "over budget", "running"
@@ -34,7 +35,7 @@ class RunState:
             where = f"resumes at step {self.step}" if self.step is not None else "no checkpoint yet"
             return f"seed {self.seed}: unfinished, {where} of {self.cell.budget}"
         if self.state == RUNNING:
-            return f"seed {self.seed}: running now (train.py holds {self.run_dir / LOCK_NAME})"
+            return f"seed {self.seed}: running now (train.py holds {paths.relative(self.run_dir / LOCK_NAME)})"
         if self.state == OVER:
             return (f"seed {self.seed}: trained to {self.step} steps, past the budget {self.cell.budget}; move "
                     f"{self.run_dir} away to run it again")

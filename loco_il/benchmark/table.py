@@ -14,10 +14,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Sequence
 
-from loco_il.benchmark import commands, paths
+from loco_il.benchmark import availability, commands, paths
 from loco_il.benchmark.cells import Cell
 from loco_il.benchmark.protocol import Protocol
-from loco_il.benchmark.status import FINISHED, NEW, RunState, finished_eval
+from loco_il.benchmark.status import FINISHED, NEW, RunState, finished_eval, run_state
 from loco_il.evaluation import leaderboard
 
 NORMALIZED, RETURN = "normalized", "return"
@@ -83,6 +83,13 @@ def cell_result(proto: Protocol, cell: Cell, states: Sequence[RunState], blocked
     return res
 
 
+def results_of(proto: Protocol, cells: Sequence[Cell], results_dir: Path) -> list[CellResult]:
+    """Every cell's result from the run dirs under `results_dir` (and whether its dataset can be built here)."""
+    published = leaderboard.load_published()
+    return [cell_result(proto, c, [run_state(c, s, results_dir) for s in c.seeds],
+                        availability.blocked_reason(c.task_id), published, results_dir) for c in cells]
+
+
 # ----------------------------------------------------------------------------- formatting
 def protocol_arg(proto: Protocol) -> str:
     """How commands name the protocol: its name when it is a shipped one, else its file."""
@@ -104,7 +111,7 @@ def _pm(mean: float | None, ci: float | None, digits: int) -> str:
     return f"{mean:.{digits}f}" if ci is None else f"{mean:.{digits}f} ± {ci:.{digits}f}"
 
 
-def _score_text(res: CellResult, value: tuple[float, float | None] | None) -> str:
+def score_text(res: CellResult, value: tuple[float, float | None] | None) -> str:
     if value is None:
         return "—"
     digits = 2 if res.metric == NORMALIZED else 1
@@ -125,7 +132,9 @@ def _episodes(n: Any) -> str:
 
 
 def markdown(proto: Protocol, results: Sequence[CellResult], cost_text: str, curves: dict[str, str],
-             results_dir: Path | None = None) -> str:
+             results_dir: Path | None = None, overview: Sequence[str] = ()) -> str:
+    """The protocol's leaderboard page; `overview` (the task x algorithm headline, `overview.matrix`) comes
+    first when given."""
     steps = report_steps(proto)
     ev = dict(proto.eval)
     n_runs = sum(len(r.states) for r in results)
@@ -145,6 +154,8 @@ def markdown(proto: Protocol, results: Sequence[CellResult], cost_text: str, cur
               "degrees of freedom; none for a single seed). \"final\": the final evaluation "
               f"({_episodes(ev.get('final_episodes', 10))}); " + along
               + "Each row's command reproduces it (run from the repository root).", ""]
+    if overview:
+        lines += ["## Overview", "", *overview, ""]
     head = ["task", "algorithm", "budget", "seeds", "final"] + [f"@{steps_label(s)}" for s in steps] + \
         ["return", "command"]
     for part in proto.parts:
@@ -155,9 +166,9 @@ def markdown(proto: Protocol, results: Sequence[CellResult], cost_text: str, cur
         else:
             lines += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
             for r in rows:
-                at = [_score_text(r, r.at[s][:2]) if s in r.at else "—" for s in steps]
+                at = [score_text(r, r.at[s][:2]) if s in r.at else "—" for s in steps]
                 lines.append("| " + " | ".join([r.cell.task_id, r.cell.label, r.cell.budget_label, _seed_note(r),
-                                                _score_text(r, r.score), *at,
+                                                score_text(r, r.score), *at,
                                                 _pm(r.summary["return_mean"], r.summary["return_ci95"], 1),
                                                 f"`{r.command}`"]) + " |")
             lines.append("")
@@ -246,4 +257,5 @@ def to_csv(proto: Protocol, results: Sequence[CellResult]) -> str:
     return buf.getvalue()
 
 
-__all__ = ["CellResult", "cell_result", "markdown", "to_csv", "score_at", "steps_label", "report_steps"]
+__all__ = ["CellResult", "cell_result", "results_of", "markdown", "to_csv", "score_at", "score_text", "steps_label",
+           "report_steps"]

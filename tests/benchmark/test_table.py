@@ -122,3 +122,54 @@ def test_score_along_the_way_is_the_first_evaluation_at_or_after_the_step():
     assert score_at(rows, 100, 4, "normalized") is None            # no evaluation within the interval
     assert [steps_label(s) for s in (100, 100_000, 1_500_000, 40_000_000, 1234)] == ["100", "100k", "1.5M", "40M",
                                                                                     "1234"]
+
+
+def test_overview_matrix_in_the_table_and_the_readme(grid):
+    path, logs, out = grid
+    doc = tiny_protocol()
+    doc["parts"]["real"]["algorithms"] = ["gail", "vail"]
+    write_protocol(path.parent, "tiny", doc)
+    finished_run(logs / "UnitreeH1.walk.real" / "vail" / "seed0", "UnitreeH1.walk.real", "vail", 0, 300, None,
+                 80.0, [(300, None, 80.0)])
+    readme = out.parent / "README.md"
+    readme.write_text("# Title\n\n<!-- leaderboard:tiny -->\nstale table\n<!-- /leaderboard:tiny -->\n\nafter\n")
+    assert cli.main(["table", str(path), "--results-dir", str(logs), "--out", str(out), "--no-plots",
+                     "--readme", str(readme)]) == 0
+    text = readme.read_text()
+    assert text.startswith("# Title\n\n<!-- leaderboard:tiny -->\n| task | gail | vail | bc |\n")
+    assert "stale table" not in text and text.endswith("<!-- /leaderboard:tiny -->\n\nafter\n")
+    ci = _ci([0.8, 0.9, 1.0])
+    # a complete cell, a cell not run yet (Hopper vail: empty), partial cells with their seed counts, a cell
+    # outside its part (BC on real data: n/a)
+    assert f"| Hopper.run.perfect | 0.90 ± {ci:.2f} |  | 1.00 ± " in text and "(2/3 seeds) |" in text
+    assert "| UnitreeH1.walk.real | 523.4 (return) (1/3 seeds) | 80.0 (return) (1/3 seeds) | n/a |" in text
+    md = (out / "tiny.md").read_text()
+    block = text.split("<!-- leaderboard:tiny -->\n")[1].split("<!-- /leaderboard:tiny -->")[0]
+    assert "## Overview\n\n" + block in md
+
+
+def test_readme_without_markers_is_refused_before_anything_is_written(grid, capsys):
+    path, logs, out = grid
+    readme = out.parent / "README.md"
+    readme.write_text("# Title\n<!-- /leaderboard:tiny -->\n<!-- leaderboard:tiny -->\n")
+    assert cli.main(["table", str(path), "--results-dir", str(logs), "--out", str(out), "--no-plots",
+                     "--readme", str(readme)]) == 2
+    err = capsys.readouterr().out
+    assert "has no '<!-- leaderboard:tiny -->' ... '<!-- /leaderboard:tiny -->' block" in err
+    assert readme.read_text() == "# Title\n<!-- /leaderboard:tiny -->\n<!-- leaderboard:tiny -->\n"
+    assert not out.exists()
+    assert cli.main(["table", str(path), "--results-dir", str(logs), "--out", str(out), "--readme",
+                     str(out.parent / "missing.md")]) == 2
+    assert "no such file" in capsys.readouterr().out
+
+
+def test_the_readme_table_is_the_one_the_committed_logs_give():
+    """Adding runs to benchmarks/leaderboard/logs/ without `table small --readme README.md` fails here."""
+    from loco_il.benchmark import overview, paths
+    from loco_il.benchmark.table import results_of
+    proto = load_protocol("small")
+    readme = (paths.ROOT / "README.md").read_text()
+    start, end = overview.markers("small")
+    committed = readme.split(start + "\n")[1].split(end)[0]
+    fresh = "\n".join(overview.matrix(proto, results_of(proto, select(proto), proto.results_dir))) + "\n"
+    assert committed == fresh, "stale README table: python -m loco_il.benchmark table small --readme README.md"
