@@ -66,6 +66,14 @@ def _write_csv_rows(fh: IO[str], rows: list[Mapping[str, Any]], *, header: bool)
         writer.writerow({k: ("" if row.get(k) is None else row.get(k)) for k in CSV_COLUMNS})
 
 
+def write_log_csv(path: str | os.PathLike, rows: list[Mapping[str, Any]]) -> None:
+    """Replace the log.csv at `path` by `rows`, atomically."""
+    buf = io.StringIO(newline="")
+    _write_csv_rows(buf, rows, header=True)
+    with atomic_open(path, "wb") as fh:   # bytes: the csv module's line ends stay as they are
+        fh.write(buf.getvalue().encode())
+
+
 class RunLogger:
     """CSV + JSON-lines files in the run dir, optional W&B, optional tqdm progress bar."""
 
@@ -139,10 +147,7 @@ class RunLogger:
             return next(csv.reader(fh), [])
 
     def _write_csv(self, rows: list[dict]) -> None:
-        buf = io.StringIO(newline="")
-        _write_csv_rows(buf, rows, header=True)
-        with atomic_open(self.csv_path, "wb") as fh:   # bytes: the csv module's line ends stay as they are
-            fh.write(buf.getvalue().encode())
+        write_log_csv(self.csv_path, rows)
 
     def summary(self, values: Mapping[str, Any]) -> None:
         if self._wandb is not None:
@@ -190,4 +195,4 @@ class Stopwatch:
         return self.offset + time.perf_counter() - self._start
 
 
-__all__ = ["RunLogger", "Stopwatch", "CSV_COLUMNS", "read_jsonl"]
+__all__ = ["RunLogger", "Stopwatch", "CSV_COLUMNS", "read_jsonl", "write_log_csv"]

@@ -54,6 +54,20 @@ def test_perfect_walks_and_replays_exactly(body):
         assert not out["absorbing"].any()
 
 
+@pytest.mark.parametrize("body", ["UnitreeA1", "UnitreeGo1"])
+def test_perfect_hard_walks_toward_each_episodes_direction(body):
+    """`hard` draws a walking direction per episode; the controller turns and walks toward it (the directional
+    velocity reward exp(-5 |v - v_cmd|) is 0.08 when standing still; over these first 2.5 s, which include the
+    turn, the trot reaches 0.5-0.75 per step)."""
+    env = LocoEnv.make(f"{body}.hard.perfect")
+    data = env.create_dataset(n_episodes=2, horizon=HORIZON, verbose=False)
+    assert not data.absorbing.any() and data.info["expert_metadata"]["task_id"] == f"{body}.hard"
+    for a, b in data.episode_bounds():
+        assert data.rewards[a + SETTLE:b].mean() > 0.4
+    (a0, b0), (a1, b1) = data.episode_bounds()
+    assert not np.allclose(data.obs[a0:b0], data.obs[a1:b1])
+
+
 def test_perfect_is_deterministic_and_cached():
     env = LocoEnv.make("UnitreeA1.simple.perfect")
     stats = dict(expert_mod.STATS)
@@ -103,7 +117,7 @@ def test_preference_levels_ranked_by_return():
 
 
 def test_baselines_record_the_trot_controller():
-    for task in ("UnitreeA1.simple", "UnitreeGo1.simple"):
+    for task in ("UnitreeA1.simple", "UnitreeGo1.simple", "UnitreeA1.hard", "UnitreeGo1.hard"):
         base = get_baseline(task)
         assert "not an RL policy" in base["expert"]["source"] and base["expert"]["expert_file"] is None
         assert base["expert"]["return_mean"] > 700 > 100 > base["random"]["return_mean"]
