@@ -73,9 +73,9 @@ def _rescore_log(path: Path, task_id: str) -> bool:
 def rescore_run(run_dir: Path) -> bool:
     """Recompute one run's normalized scores; True when a file changed."""
     task_id = json.loads((run_dir / EVAL_FILE).read_text())["task_id"]
+    changed_log = _rescore_log(run_dir / LOG_FILE, task_id)     # first: a foreign log.csv leaves eval.json alone
     changed_eval = _rescore_eval(run_dir / EVAL_FILE, task_id)
-    changed_log = _rescore_log(run_dir / LOG_FILE, task_id)
-    return changed_eval or changed_log
+    return changed_log or changed_eval
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -85,10 +85,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 0 if argv else 2
     try:
         dirs = list(run_dirs(argv))
-    except FileNotFoundError as err:
+        changed = [d for d in dirs if rescore_run(d)]
+    except (FileNotFoundError, ValueError) as err:   # a missing path, a log.csv that is not train.py's
         print(f"[rescore] error: {err}", file=sys.stderr)
         return 2
-    changed = [d for d in dirs if rescore_run(d)]
     for d in changed:
         print(f"[rescore] {d}")
     print(f"[rescore] {len(changed)} of {len(dirs)} run(s) re-scored")

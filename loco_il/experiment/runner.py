@@ -94,6 +94,10 @@ class StopRequested(Exception):
 class StoppedBySignal(Exception):
     """SIGINT/SIGTERM arrived: the run stopped after the agent's next fit, with a checkpoint."""
 
+    def __init__(self, message: str, signal_name: str):
+        super().__init__(message)
+        self.signal_name = signal_name
+
 
 class _StopAtFit(Exception):
     """Raised by the Core's fit callback once a stop signal has arrived: ends `Core.learn` right after a fit,
@@ -480,7 +484,7 @@ class Runner:
         budget, stop_after = self.schedule.budget, self.cfg.get("stop_after_steps")
         if stop.signal is not None and step < budget:
             raise StoppedBySignal(f"stopped by {stop.signal} at step {step}/{budget}, checkpoint "
-                                  f"saved (re-run the same command to resume)")
+                                  f"saved (re-run the same command to resume)", str(stop.signal))
         if stop_after is not None and step >= int(stop_after) and step < budget:
             raise StopRequested(f"stop_after_steps={stop_after}: stopped at step {step}/{budget} "
                                 f"(re-run the same command to resume)")
@@ -623,6 +627,11 @@ def run(cfg: Any, run_dir: str | Path, cli_overrides: Sequence[str] = ()) -> dic
     return Runner(cfg, run_dir, cli_overrides).run()
 
 
+#: set in a process once a stop signal has ended one of its jobs: a sweep's later jobs in that process (Hydra's
+#: basic launcher runs them one after another) do not start, so `kill` stops the sweep, not only its current job
+_signal_stop: list[str] = []
+
+
 @dataclass
 class JobOutcome:
     """How one `train.py` job ended: its exit status and, for a failure, the one-line error (sweep summaries)."""
@@ -648,9 +657,13 @@ def run_job(cfg: Any, run_dir: str | Path, cli_overrides: Sequence[str] = (), ca
         outcome.code, outcome.error = code, message
         return outcome
 
+    if _signal_stop:
+        return failed(SIGNAL_EXIT_CODE, f"not started: an earlier job of this sweep was {_signal_stop[0]}",
+                      "[loco_il] ")
     try:
         run(validate_config(cfg), run_dir, cli_overrides)
     except StoppedBySignal as exc:
+        _signal_stop.append(f"stopped by {exc.signal_name}")
         return failed(SIGNAL_EXIT_CODE, str(exc), "[loco_il] ")
     except StopRequested as exc:
         return failed(STOPPED_EXIT_CODE, str(exc), "[loco_il] ")

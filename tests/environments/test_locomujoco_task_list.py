@@ -27,7 +27,7 @@ LOCOMUJOCO_TASKS = {
     "UnitreeA1.simple.real": (37, 12), "UnitreeA1.simple.perfect": (37, 12),
     "UnitreeA1.hard.real": (37, 12), "UnitreeA1.hard.perfect": (37, 12),
 }
-WITH_EXPERT = {"UnitreeA1.simple.perfect",                    # a built-in model-based expert
+WITH_EXPERT = {"UnitreeA1.simple.perfect", "UnitreeA1.hard.perfect",   # the built-in trot controller
                "Atlas.walk.perfect", "Talos.walk.perfect",     # the shipped motion-tracking experts
                "UnitreeG1.walk.perfect", "HumanoidTorque.walk.perfect", "UnitreeH1.walk.perfect"}
 SHORT_CLIP = [ClipSpec("deepmimic/humanoid3d_walk.txt")]     # one gait cycle: a dataset in a fraction of a second
@@ -52,7 +52,7 @@ def test_makes_resets_steps_with_locomujoco_sizes(task_id):
 @pytest.mark.parametrize("task_id", list(LOCOMUJOCO_TASKS))
 def test_builds_its_dataset_or_says_how_to_get_the_expert(task_id, tmp_path, monkeypatch):
     """real builds (humanoids: one short clip; UnitreeA1: one simulated trot); perfect builds where an expert
-    exists (UnitreeA1.simple's built-in one, the five bipeds' walk tasks' shipped ones) and otherwise names how to get one."""
+    exists (UnitreeA1's built-in one, the five bipeds' walk tasks' shipped ones) and otherwise names how to get one."""
     monkeypatch.setenv("LOCO_IL_DATASETS", str(tmp_path))
     env = LocoEnv.make(task_id)
     kwargs = {"n_episodes": 1} if task_id.startswith("UnitreeA1") or task_id in WITH_EXPERT else {"clips": SHORT_CLIP}

@@ -46,6 +46,13 @@ def test_rescore_fills_the_normalized_scores_from_the_logged_returns(tmp_path, c
     assert rescore.main([str(tmp_path)]) == 0 and "0 of 2 run(s) re-scored" in capsys.readouterr().out
 
 
-def test_rescore_refuses_a_missing_path(tmp_path, capsys):
+def test_rescore_refuses_a_missing_path_and_a_foreign_log(tmp_path, capsys):
     assert rescore.main([str(tmp_path / "nope")]) == 2
     assert "no such run dir or folder" in capsys.readouterr().err
+    run = tmp_path / "run"
+    _run(run, "Hopper.run.perfect", [100.0], 100.0)
+    (run / "log.csv").write_text("step,return\n1,2\n")
+    assert rescore.main([str(run)]) == 2
+    assert "are not a train.py log.csv's" in capsys.readouterr().err
+    assert (run / "log.csv").read_text() == "step,return\n1,2\n"
+    assert json.loads((run / "eval.json").read_text())["normalized_score"] is None

@@ -15,7 +15,8 @@ from pathlib import Path
 
 import pytest
 import torch
-from train_helpers import FAST, ROOT, TASK, csv_rows, make_env_vars, run_dir, train  # tests/ is on sys.path
+from train_helpers import (FAST, ROOT, TASK, csv_rows, make_env_vars, run_dir, train,  # tests/ is on sys.path
+                           train_command)
 
 pytestmark = pytest.mark.slow      # subprocess runs of train.py: the full suite (CI) runs them; -m "not slow" skips them
 
@@ -300,10 +301,10 @@ def test_killed_run_resumes(env_vars, tmp_path):
     assert steps == [500, 1000, 1500, 2000]
 
 
-def start_and_signal(env_vars, results: Path, args: list[str], ready, delay: float = 0.0):
+def start_and_signal(env_vars, results: Path, args: list[str], ready, delay: float = 0.0, multirun: bool = False):
     """Start train.py, send SIGTERM once `ready()` holds (plus `delay` seconds); returns (exit status, stderr,
     seconds from the signal to the exit)."""
-    cmd = [sys.executable, "train.py", f"results_dir={results}", *FAST, *args]
+    cmd = train_command(results, *args, multirun=multirun)
     proc = subprocess.Popen(cmd, cwd=ROOT, env=env_vars, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     try:
         deadline = time.time() + 240
@@ -436,3 +437,16 @@ def test_state_only_learners_train_on_a_real_dataset(env_vars, tmp_path, algo):
     assert result["dataset_type"] == "real" and result["env_steps"] == 400
     assert result["baseline"]["random"] is not None and result["normalized_score"] == pytest.approx(
         (result["return_mean"] - result["baseline"]["random"]) / (result["baseline"]["expert"] - result["baseline"]["random"]))
+
+
+def test_sigterm_stops_the_whole_sweep(env_vars, tmp_path):
+    """SIGTERM during the first job of a `-m` sweep: that job stops with its checkpoint and the later jobs do not
+    start (the sweep's summary names them), exit status 1 (a job did not finish)."""
+    results = tmp_path / "results"
+    args = ["algo=bc", "seed=0,1", "n_steps=20000", "eval.every=500", "checkpoint_every=10000"]
+    log = run_dir(results, seed=0) / "log.csv"
+    code, err, _ = start_and_signal(env_vars, results, args, lambda: log.exists() and csv_rows(log), multirun=True)
+    assert code == 1, err[-2000:]
+    assert "stopped by SIGTERM at step" in err and (run_dir(results, seed=0) / "checkpoint.pt").exists()
+    assert "not started: an earlier job of this sweep was stopped by SIGTERM" in err
+    assert not (run_dir(results, seed=1) / "checkpoint.pt").exists()
