@@ -19,6 +19,9 @@ import sys
 from pathlib import Path
 from typing import Iterator, Sequence
 
+import numpy as np
+
+from loco_il.datasets.baselines import BaselineMissingError, normalized_score
 from loco_il.experiment.logging import CSV_COLUMNS, write_log_csv
 from loco_il.experiment.scoring import normalized
 from loco_il.utils.fileio import write_json
@@ -57,13 +60,17 @@ def _rescore_log(path: Path, task_id: str) -> bool:
         fields, rows = list(reader.fieldnames or ()), list(reader)
     if tuple(fields) != CSV_COLUMNS:
         raise ValueError(f"{path}: columns {fields} are not a train.py log.csv's {list(CSV_COLUMNS)}")
+    evaluated = [row for row in rows if row["eval_return_mean"] not in ("", None)]
+    if not evaluated:
+        return False
+    try:   # one baseline lookup for the whole log (normalized_score works on arrays)
+        scores = np.atleast_1d(normalized_score(task_id, [float(row["eval_return_mean"]) for row in evaluated]))
+    except (BaselineMissingError, ValueError):   # no baseline (yet): the log stays as it is
+        return False
     changed = False
-    for row in rows:
-        if row["eval_return_mean"] in ("", None):
-            continue
-        score = normalized(task_id, float(row["eval_return_mean"]))[0]
+    for row, score in zip(evaluated, map(float, scores)):
         old = None if row["normalized_score"] in ("", None) else float(row["normalized_score"])
-        if score is not None and not _same(old, score):
+        if not _same(old, score):
             row["normalized_score"], changed = repr(score), True
     if changed:
         write_log_csv(path, rows)
