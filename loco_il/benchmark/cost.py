@@ -110,15 +110,16 @@ def estimate(proto: Protocol, cells: Sequence[Cell]) -> list[PartCost]:
     return [PartCost(name, int(n), h) for name, (n, h) in out.items() if n]
 
 
-def _hours(h: float) -> str:
+def hours_text(h: float) -> str:
+    """Hours to two significant digits below 10, whole hours above."""
     return f"{h:.0f}" if h >= 10 else f"{h:.2g}"
 
 
 def format_estimate(costs: Sequence[PartCost], jobs: int = 2) -> str:
     """The estimate as text lines (for the CLI, the protocol's comments and the table)."""
     total = sum(c.hours for c in costs)
-    lines = [f"part {c.part}: {c.runs} runs, {_hours(c.hours)} single-core hours" for c in costs]
-    lines.append(f"total: {sum(c.runs for c in costs)} runs, {_hours(total)} single-core hours")
+    lines = [f"part {c.part}: {c.runs} runs, {hours_text(c.hours)} single-core hours" for c in costs]
+    lines.append(f"total: {sum(c.runs for c in costs)} runs, {hours_text(total)} single-core hours")
     lines.append(f"with {jobs} runs at a time: ~{total / jobs / 24:.1f} days at these rates, up to "
                  f"~{2 * total / jobs / 24:.1f} days where runs side by side slow each other")
     return "\n".join(lines)
@@ -134,9 +135,9 @@ def summary_text(proto: Protocol, cells: Sequence[Cell], jobs: int = 2) -> str:
         hours = sum(run_hours(proto, c) * len(c.seeds) for c in blocked)
         runs = sum(len(c.seeds) for c in blocked)
         tasks = ", ".join(sorted({c.task_id for c in blocked}))
-        text += f"\nof these, blocked until their dataset exists: {runs} runs, {_hours(hours)} hours ({tasks})"
+        text += f"\nof these, blocked until their dataset exists: {runs} runs, {hours_text(hours)} hours ({tasks})"
     return text
 
 
-__all__ = ["estimate", "format_estimate", "summary_text", "run_hours", "PartCost", "CostError", "ENV_STEPS_PER_S",
-           "LEARNER_MS"]
+__all__ = ["estimate", "format_estimate", "summary_text", "run_hours", "hours_text", "PartCost", "CostError",
+           "ENV_STEPS_PER_S", "LEARNER_MS"]

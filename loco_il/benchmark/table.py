@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Sequence
 
-from loco_il.benchmark import availability, commands, paths
+from loco_il.benchmark import availability, commands, cost, paths
 from loco_il.benchmark.cells import Cell
 from loco_il.benchmark.protocol import Protocol
 from loco_il.benchmark.status import FINISHED, NEW, RunState, finished_eval, run_state
@@ -209,15 +209,18 @@ def missing_section(proto: Protocol, results: Sequence[CellResult], results_dir:
     if not missing and not blocked:
         return lines + ["None: every run of the protocol has finished.", ""]
     n = sum(len(r.missing) for r in results)
-    lines += [f"{n} runs. `python -m loco_il.benchmark run {protocol_arg(proto)}` starts or resumes all of them; each "
-              "command below fills one cell.", ""]
+    # a cell's missing seeds at the full estimate (an unfinished run resumes, so this is an upper bound)
+    hours = {id(r): len(r.missing) * cost.run_hours(proto, r.cell) for r in results if r.missing}
+    lines += [f"{n} runs, ~{cost.hours_text(sum(hours.values()))} single-core hours by the cost model (`python -m "
+              f"loco_il.benchmark cost`; \"est. hours\" below). `python -m loco_il.benchmark run "
+              f"{protocol_arg(proto)}` starts or resumes all of them; each command below fills one cell.", ""]
     if missing:
-        lines += ["| task | algorithm | seeds | state | command |", "|---|---|---|---|---|"]
+        lines += ["| task | algorithm | seeds | state | est. hours | command |", "|---|---|---|---|---|---|"]
         for r in missing:
             seeds = [s.seed for s in r.missing]
             cmd = commands.cell_command(proto, r.cell, seeds, results_dir=results_dir)
             lines.append(f"| {r.cell.task_id} | {r.cell.label} | {' '.join(map(str, seeds))} | "
-                         f"{state_text(r.missing)} | `{cmd}` |")
+                         f"{state_text(r.missing)} | {cost.hours_text(hours[id(r)])} | `{cmd}` |")
         lines.append("")
     if blocked:
         lines += ["Blocked until their dataset can be built (the CSV has each cell's train.py command):", "",

@@ -11,10 +11,11 @@ import pytest
 from benchmark_fixtures import finished_run, tiny_protocol, write_protocol
 
 from loco_il.benchmark import __main__ as cli
+from loco_il.benchmark import cost
 from loco_il.benchmark.cells import select
 from loco_il.benchmark.protocol import load_protocol
 from loco_il.benchmark.status import FINISHED, NEW, OVER, RUNNING, UNFINISHED, run_state
-from loco_il.benchmark.table import score_at, steps_label
+from loco_il.benchmark.table import results_of, score_at, steps_label
 from loco_il.experiment.lock import run_dir_lock
 
 T95_2 = 4.302652729911275       # Student-t 0.975 quantile, 2 degrees of freedom
@@ -81,9 +82,16 @@ def test_table_rows_statistics_and_commands(grid, capsys):
     assert "| Hopper.run.perfect | bc | 50 gradient steps | 2/3 | 1.00 ± " in md and "| — | — | 3000.5 ± " in md
     assert "| UnitreeH1.walk.real | gail | 300 env steps | 1/3 | 523.4 (return) | 40.0 (return) | 60.0 (return) |" in md
     missing = md.split("## Missing runs")[1].split("## Settings")[0]
-    assert ("| Hopper.run.perfect | bc | 2 | seed 2: unfinished, resumes at step 20 of 50 | `python train.py -m "
-            "task=Hopper.run.perfect algo=bc seed=2 ") in missing
-    assert "| UnitreeH1.walk.real | gail | 1 2 | not started |" in missing
+    # each missing cell carries its estimated single-core hours: the cost model's per-run figure x missing seeds
+    cells = {c.key: c for c in select(load_protocol(path))}
+    bc_hours, h1_hours = (cost.run_hours(load_protocol(path), cells[k])
+                          for k in ("Hopper.run.perfect/bc", "UnitreeH1.walk.real/gail"))
+    assert (f"| Hopper.run.perfect | bc | 2 | seed 2: unfinished, resumes at step 20 of 50 | "
+            f"{cost.hours_text(bc_hours)} | `python train.py -m task=Hopper.run.perfect algo=bc seed=2 ") in missing
+    assert f"| UnitreeH1.walk.real | gail | 1 2 | not started | {cost.hours_text(2 * h1_hours)} |" in missing
+    total = sum(len(r.missing) * cost.run_hours(load_protocol(path), r.cell)
+                for r in results_of(load_protocol(path), list(cells.values()), logs))
+    assert f"runs, ~{cost.hours_text(total)} single-core hours by the cost model" in missing
     assert "past the budget 300" in missing and "seeds 1 2: not started" in missing   # vail seed 0 trained to 5000
     assert ("| UnitreeH1.run.perfect | gail, vail, lsiq, lsiq_twin, bc | no expert for UnitreeH1.run" in missing
             and f"`python -m loco_il.benchmark run {path} --tasks UnitreeH1.run.perfect` |" in missing)
