@@ -29,12 +29,13 @@ ENV_STEPS_PER_S: dict[str, float] = {
 #: learner work per training step, ms (RESULTS.md "Imitation-learning agents: update and on-policy speed"):
 #: on-policy: TRPO fit per env step (409-439 us) + draw_action (20 us); SAC-based: one update per env step
 #: (il_speed.py, run 2) + 0.4 ms for acting and storing the transition (an LS-IQ run on Hopper: 78 env steps/s,
-#: i.e. 12.8 ms per step, against a 12.2 ms update and a 0.2 ms env step); BC: one gradient step
-#: (il_results/hopper_onpolicy.csv: 10,240 gradient steps in 145.2 s, one evaluation included).
+#: i.e. 12.8 ms per step, against a 12.2 ms update and a 0.2 ms env step); BC: one gradient step, from the
+#: leaderboard's own runs (benchmarks/cost_model_check.py: 100,000 gradient steps and 60 evaluation episodes in
+#: 383-413 s on HalfCheetah, Ant and Humanoid, whose evaluations take 6-29 s of it).
 LEARNER_MS: dict[str, float] = {
     "gail": 0.46, "vail": 0.46, "gaifo": 0.46,
     "iqlearn": 18.79 + 0.4, "lsiq": 12.20 + 0.4, "lsiqfo": 14.64 + 0.4, "sqil": 16.39 + 0.4,
-    "bc": 14.2,
+    "bc": 3.8,
 }
 #: the default number of critics of each SAC-based learner (experiment_configs/algo/)
 DEFAULT_CRITICS = {"iqlearn": 2, "lsiq": 1, "lsiqfo": 1, "sqil": 2}
