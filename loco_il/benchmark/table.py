@@ -122,6 +122,23 @@ def report_steps(proto: Protocol) -> list[int]:
     return sorted({s for f in proto.families for s in f.report_at})
 
 
+# The published-score sources (leaderboard.PUBLISHED_FILE) and what a search of the literature found for this grid.
+PUBLISHED_NOTE = ("\"published\": a paper's score for the same setting, with its source "
+                  "(`loco_il/evaluation/published.yaml`); \"n/a\" where none exists. None exists for LocoMuJoCo's "
+                  "tasks: LocoMuJoCo publishes no baseline scores (loco-mujoco issue #13). For the classic bodies "
+                  "the papers' settings differ (expert episodes, budgets, Gymnasium versions) and no same-setting "
+                  "number could be read (`benchmarks/PUBLISHED.md`).")
+
+
+def published_text(res: CellResult) -> str:
+    """A row's published score with its source, or n/a."""
+    value = (res.summary or {}).get("published")
+    if not value:
+        return leaderboard.NO_PUBLISHED
+    source = (res.summary or {}).get("published_source")
+    return f"{value} ({source})" if source else str(value)
+
+
 def _seed_note(res: CellResult) -> str:
     done = len(res.runs)
     return f"{done}/{len(res.cell.seeds)}"
@@ -153,11 +170,11 @@ def markdown(proto: Protocol, results: Sequence[CellResult], cost_text: str, cur
               "(marked \"(return)\"). Mean ± 95 % confidence interval over the finished seeds (Student-t, n-1 "
               "degrees of freedom; none for a single seed). \"final\": the final evaluation "
               f"({_episodes(ev.get('final_episodes', 10))}); " + along
-              + "Each row's command reproduces it (run from the repository root).", ""]
+              + "Each row's command reproduces it (run from the repository root).", "", PUBLISHED_NOTE, ""]
     if overview:
         lines += ["## Overview", "", *overview, ""]
     head = ["task", "algorithm", "budget", "seeds", "final"] + [f"@{steps_label(s)}" for s in steps] + \
-        ["return", "command"]
+        ["return", "published", "command"]
     for part in proto.parts:
         rows = [r for r in results if r.cell.part == part.name and r.runs]
         lines += [f"## Part `{part.name}` ({part.dataset} datasets)", ""]
@@ -170,7 +187,7 @@ def markdown(proto: Protocol, results: Sequence[CellResult], cost_text: str, cur
                 lines.append("| " + " | ".join([r.cell.task_id, r.cell.label, r.cell.budget_label, _seed_note(r),
                                                 score_text(r, r.score), *at,
                                                 _pm(r.summary["return_mean"], r.summary["return_ci95"], 1),
-                                                f"`{r.command}`"]) + " |")
+                                                published_text(r), f"`{r.command}`"]) + " |")
             lines.append("")
         figs = [f"[{t}]({p})" for t, p in sorted(curves.items()) if t.endswith(f".{part.dataset}")
                 and any(r.cell.task_id == t for r in rows)]

@@ -16,6 +16,7 @@ from loco_il.benchmark.cells import select
 from loco_il.benchmark.protocol import load_protocol
 from loco_il.benchmark.status import FINISHED, NEW, OVER, RUNNING, UNFINISHED, run_state
 from loco_il.benchmark.table import results_of, score_at, steps_label
+from loco_il.evaluation import leaderboard
 from loco_il.experiment.lock import run_dir_lock
 
 T95_2 = 4.302652729911275       # Student-t 0.975 quantile, 2 degrees of freedom
@@ -78,7 +79,8 @@ def test_table_rows_statistics_and_commands(grid, capsys):
     cmd = (f"python train.py -m task=Hopper.run.perfect algo=gail seed=0,1,2 n_steps=300 eval.every=100 "
            f"eval.episodes=5 eval.final_episodes=10 logger=csv results_dir={logs}")
     assert (f"| Hopper.run.perfect | gail | 300 env steps | 3/3 | 0.90 ± {ci:.2f} | 0.30 ± {ci:.2f} | "
-            f"0.60 ± {ci:.2f} | 900.0 ± {1000 * ci:.1f} | `{cmd}` |") in md
+            f"0.60 ± {ci:.2f} | 900.0 ± {1000 * ci:.1f} | n/a | `{cmd}` |") in md
+    assert "None exists for LocoMuJoCo's tasks" in md.split("## Part")[0]
     assert "| Hopper.run.perfect | bc | 50 gradient steps | 2/3 | 1.00 ± " in md and "| — | — | 3000.5 ± " in md
     assert "| UnitreeH1.walk.real | gail | 300 env steps | 1/3 | 523.4 (return) | 40.0 (return) | 60.0 (return) |" in md
     missing = md.split("## Missing runs")[1].split("## Settings")[0]
@@ -100,6 +102,22 @@ def test_table_rows_statistics_and_commands(grid, capsys):
     assert sorted(p.name for p in (out / "curves" / "tiny").iterdir()) == ["Hopper.run.perfect.png",
                                                                            "UnitreeH1.walk.real.png"]
     assert "[Hopper.run.perfect](curves/tiny/Hopper.run.perfect.png)" in md
+
+
+def test_a_published_score_is_shown_beside_its_row_with_its_source(grid, tmp_path, monkeypatch):
+    path, logs, out = grid
+    published = tmp_path / "published.yaml"
+    published.write_text("entries:\n  - {task: Hopper.run, dataset: perfect, algorithm: gail, value: '0.93 normalized',"
+                         " source: 'Paper 2020, Table 2'}\n")
+    monkeypatch.setattr(leaderboard, "PUBLISHED_FILE", published)
+    cli.main(["table", str(path), "--results-dir", str(logs), "--out", str(out), "--no-plots"])
+    md = (out / "tiny.md").read_text()
+    gail_row = next(line for line in md.splitlines() if line.startswith("| Hopper.run.perfect | gail |"))
+    bc_row = next(line for line in md.splitlines() if line.startswith("| Hopper.run.perfect | bc |"))
+    assert "| 0.93 normalized (Paper 2020, Table 2) | `python train.py" in gail_row
+    assert "| n/a | `python train.py" in bc_row
+    rows = {(r["task"], r["algorithm"]): r for r in csv.DictReader(io.StringIO((out / "tiny.csv").read_text()))}
+    assert rows[("Hopper.run.perfect", "gail")]["published"] == "0.93 normalized"
 
 
 def test_table_csv(grid):
