@@ -23,6 +23,8 @@ import tarfile
 import tempfile
 from pathlib import Path
 
+from filelock import FileLock
+
 from loco_il.utils.hashing import file_sha256
 
 LOCOMUJOCO_SDIST = "loco-mujoco-0.4.1.tar.gz"
@@ -95,6 +97,16 @@ def locomujoco_root() -> Path:
     marker = root / ".complete"
     if marker.exists():
         return root
+    # Parallel runs (benchmark lanes, joblib sweeps) start together on a fresh cache: one extracts, the
+    # others wait for it and find the marker, so no process deletes a tree another is loading from.
+    with FileLock(str(_ensure(cache_dir()) / ".locomujoco-0.4.1.lock")):
+        if not marker.exists():
+            _fetch_locomujoco(root)
+    return root
+
+
+def _fetch_locomujoco(root: Path) -> None:
+    """Download (or take $LOCO_IL_LOCOMUJOCO_SDIST), verify and extract the model folders into ``root``."""
     with tempfile.TemporaryDirectory(prefix="loco_il_sdist_") as tmp:
         given = os.environ.get("LOCO_IL_LOCOMUJOCO_SDIST")
         archive = Path(given) if given else _download_locomujoco_sdist(Path(tmp))
@@ -121,7 +133,6 @@ def locomujoco_root() -> Path:
         finally:
             if staging.exists():
                 shutil.rmtree(staging, ignore_errors=True)
-    return root
 
 
 def _ensure(path: Path) -> Path:
