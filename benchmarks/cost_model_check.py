@@ -4,7 +4,8 @@ For every finished run of a protocol (its `eval.json`, whose `wall_time` is the 
 resumes), prints the model's estimate of one run, the measured times of the cell's seeds and their ratio
 (measured / model); then the median ratio per learner family. A ratio well below 1 means the model overestimates
 (it counts evaluation episodes at the full horizon, so falls make runs shorter); above 1 usually means the runs
-shared the 2-core machine with another run.
+shared the 2-core machine with another run. Runs trained on a GPU (`device` other than cpu in their config.yaml)
+are left out: the model is of CPU training.
 
     python benchmarks/cost_model_check.py [--protocol small]
 """
@@ -18,6 +19,11 @@ from loco_il.benchmark import cost
 from loco_il.benchmark.cells import all_cells
 from loco_il.benchmark.protocol import load_protocol
 from loco_il.benchmark.status import finished_eval
+from loco_il.evaluation.runs import load_run_config
+
+
+def trained_on_cpu(run_dir) -> bool:
+    return str(load_run_config(run_dir).get("device", "cpu")) == "cpu"
 
 
 def main() -> None:
@@ -29,7 +35,8 @@ def main() -> None:
     print(f"{'cell':44s} {'model s':>8s}  measured s (per seed)   ratio")
     for cell in all_cells(proto):
         walls = [e["wall_time"] for s in cell.seeds
-                 if (e := finished_eval(cell, cell.run_dir(proto.results_dir, s))) and "wall_time" in e]
+                 if (e := finished_eval(cell, cell.run_dir(proto.results_dir, s))) and "wall_time" in e
+                 and trained_on_cpu(cell.run_dir(proto.results_dir, s))]
         if not walls:
             continue
         model_s = cost.run_hours(proto, cell) * 3600

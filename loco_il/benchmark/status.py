@@ -3,7 +3,9 @@
 A run is finished when its `eval.json` is for the cell's task and label and its `steps` are the cell's budget;
 anything else that left a `checkpoint.json` or `log.csv` is unfinished and resumes through train.py's own resume.
 A run trained past the budget (its dir reused with a larger `n_steps`) is neither, and a run whose dir a train.py
-process holds right now is running: `run` leaves both alone.
+process holds right now is running: `run` leaves both alone. The leaderboard table reads the results alone
+(`live=False`): a run without a finished `eval.json` is "not finished" there, whatever checkpoint or process this
+machine has, so that the table made from the committed logs is the same on every machine.
 """
 from __future__ import annotations
 
@@ -18,6 +20,8 @@ from loco_il.benchmark import paths
 from loco_il.benchmark.cells import Cell
 
 FINISHED, UNFINISHED, NEW, OVER, RUNNING = "finished", "unfinished", "not started", "over budget", "running"
+#: a run without a finished result, where only the results are read (the table): not said whether it started
+NOT_FINISHED = "not finished"
 #: train.py's run-dir lock (loco_il/experiment/lock.py), held by the process that trains the run
 LOCK_NAME = ".lock"
 
@@ -26,7 +30,7 @@ LOCK_NAME = ".lock"
 class RunState:
     cell: Cell
     seed: int
-    state: str                 # FINISHED, UNFINISHED, NEW, OVER or RUNNING
+    state: str                 # FINISHED, UNFINISHED, NEW, OVER, RUNNING or NOT_FINISHED
     step: int | None           # the final step (finished) or the step a resume starts from (unfinished)
     run_dir: Path
 
@@ -81,11 +85,14 @@ def is_running(run_dir: Path) -> bool:
         os.close(fd)   # also releases the shared lock taken above
 
 
-def run_state(cell: Cell, seed: int, results_dir: Path) -> RunState:
+def run_state(cell: Cell, seed: int, results_dir: Path, live: bool = True) -> RunState:
+    """The run's state; `live=False` reads its `eval.json` alone (finished, over budget or NOT_FINISHED)."""
     run_dir = cell.run_dir(results_dir, seed)
     done = final_eval(cell, run_dir)
     if done is not None and done["steps"] >= cell.budget:
         return RunState(cell, seed, FINISHED if done["steps"] == cell.budget else OVER, done["steps"], run_dir)
+    if not live:
+        return RunState(cell, seed, NOT_FINISHED, None, run_dir)
     if is_running(run_dir):
         return RunState(cell, seed, RUNNING, None, run_dir)
     summary = _read_json(run_dir / "checkpoint.json")
@@ -100,4 +107,4 @@ def states(cells: Sequence[Cell], results_dir: Path) -> list[RunState]:
 
 
 __all__ = ["RunState", "run_state", "states", "final_eval", "finished_eval", "is_running", "FINISHED", "UNFINISHED",
-           "NEW", "OVER", "RUNNING"]
+           "NEW", "OVER", "RUNNING", "NOT_FINISHED"]

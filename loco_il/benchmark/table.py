@@ -17,7 +17,7 @@ from typing import Any, Sequence
 from loco_il.benchmark import availability, commands, cost, paths
 from loco_il.benchmark.cells import Cell
 from loco_il.benchmark.protocol import Protocol
-from loco_il.benchmark.status import FINISHED, NEW, RunState, finished_eval, run_state
+from loco_il.benchmark.status import FINISHED, NEW, NOT_FINISHED, RunState, finished_eval, run_state
 from loco_il.evaluation import leaderboard
 
 NORMALIZED, RETURN = "normalized", "return"
@@ -86,7 +86,7 @@ def cell_result(proto: Protocol, cell: Cell, states: Sequence[RunState], blocked
 def results_of(proto: Protocol, cells: Sequence[Cell], results_dir: Path) -> list[CellResult]:
     """Every cell's result from the run dirs under `results_dir` (and whether its dataset can be built here)."""
     published = leaderboard.load_published()
-    return [cell_result(proto, c, [run_state(c, s, results_dir) for s in c.seeds],
+    return [cell_result(proto, c, [run_state(c, s, results_dir, live=False) for s in c.seeds],
                         availability.blocked_reason(c.task_id), published, results_dir) for c in cells]
 
 
@@ -206,11 +206,14 @@ def markdown(proto: Protocol, results: Sequence[CellResult], cost_text: str, cur
 
 
 def state_text(states: Sequence[RunState]) -> str:
-    """The missing runs of a cell in a few words: "not started", "seed 2: unfinished, resumes at step 20 of 50"."""
-    parts = [s.describe() for s in states if s.state != NEW]
-    if any(s.state == NEW for s in states):
-        new = [str(s.seed) for s in states if s.state == NEW]
-        parts.append("not started" if not parts else f"seed{'s' if len(new) > 1 else ''} {' '.join(new)}: not started")
+    """The missing runs of a cell in a few words: "not finished", "seed 0: trained to 5000 steps, past the budget
+    300 ...; seeds 1 2: not finished" (the table reads results alone, see `status.run_state(live=False)`)."""
+    grouped = (NEW, NOT_FINISHED)
+    parts = [s.describe() for s in states if s.state not in grouped]
+    for state in grouped:
+        seeds = [str(s.seed) for s in states if s.state == state]
+        if seeds:
+            parts.append(state if not parts else f"seed{'s' if len(seeds) > 1 else ''} {' '.join(seeds)}: {state}")
     return "; ".join(parts)
 
 
@@ -230,7 +233,8 @@ def missing_section(proto: Protocol, results: Sequence[CellResult], results_dir:
     hours = {id(r): len(r.missing) * cost.run_hours(proto, r.cell) for r in results if r.missing}
     lines += [f"{n} runs, ~{cost.hours_text(sum(hours.values()))} single-core hours by the cost model (`python -m "
               f"loco_il.benchmark cost`; \"est. hours\" below). `python -m loco_il.benchmark run "
-              f"{protocol_arg(proto)}` starts or resumes all of them; each command below fills one cell.", ""]
+              f"{protocol_arg(proto)}` starts or resumes all of them (with `--dry-run` it says which have started on "
+              f"this machine); each command below fills one cell.", ""]
     if missing:
         lines += ["| task | algorithm | seeds | state | est. hours | command |", "|---|---|---|---|---|---|"]
         for r in missing:
