@@ -39,6 +39,7 @@ from loco_il.experiment.checkpoint import (CHECKPOINT_NAME, CheckpointError, con
                                            load_checkpoint, load_run_checkpoint, restore, save_checkpoint)
 from loco_il.experiment.lock import RunDirLockedError, run_dir_lock
 from loco_il.experiment.logging import RunLogger, Stopwatch
+from loco_il.experiment.machine import machine_record
 from loco_il.utils.fileio import write_json
 from loco_il.utils.hashing import ChecksumMismatchError, verify_sidecar, write_sidecar
 from loco_il.utils.plain import to_plain
@@ -588,7 +589,9 @@ class Runner:
                   "normalized_score": score, "normalized_score_note": note, "baseline": base,
                   "expert_dataset_return": self.train_data.info.get("expert_return_mean"),
                   "n_expert_trajectories": self.train_data.n_trajectories,
-                  "created": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
+                  "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+                  # where the final evaluation ran (a resumed run may have trained elsewhere before)
+                  "finished_on": machine_record(str(self.cfg.get("device") or "cpu"))}
         if ema is not None:
             result["ema_actor"] = {"return_mean": ema["return_mean"], "return_std": ema["return_std"],
                                    "length_mean": ema["length_mean"],

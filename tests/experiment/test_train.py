@@ -13,6 +13,7 @@ import sys
 import time
 from pathlib import Path
 
+import mujoco
 import pytest
 import torch
 from train_helpers import (FAST, ROOT, TASK, csv_rows, make_env_vars, run_dir, train,  # tests/ is on sys.path
@@ -56,6 +57,10 @@ def test_end_to_end_train_evaluate_and_rerun(env_vars, tmp_path):
     assert all(0 <= r["eval_terminated"] <= r["eval_episodes"] for r in jrows)
     assert all(r["eval_terminated"] not in ("", None) for r in rows)
     assert ev["similarity"]["reference"] == "test split" and ev["similarity"]["nn_distance"] >= 0
+    # the machine it finished on: CPU and cores, the torch device, the library versions (no host name)
+    machine = ev["finished_on"]
+    assert machine["device"] == "cpu" and "gpu" not in machine and machine["cpu_cores"] >= 1
+    assert machine["versions"]["torch"] == torch.__version__ and machine["versions"]["mujoco"] == mujoco.__version__
     # the default baselines have no expert return for this task: no score, and a message saying why
     if ev["normalized_score"] is None:
         assert "python -m loco_il.datasets.baselines update" in ev["normalized_score_note"]
