@@ -101,6 +101,8 @@ def cmd_run(args: argparse.Namespace, echo=print) -> int:
     for r in runs:
         if r.state in (status.OVER, status.RUNNING):
             echo(f"[benchmark] skipped {r.cell.key} {r.describe()}")
+        elif r.state == status.UNFINISHED:
+            echo(f"[benchmark] resumes {r.cell.key} {r.describe()}")
     changed = [o for o in args.overrides if launch.changes_results(o)]
     if changed:
         echo(f"[benchmark] note: {' '.join(changed)} changes the runs' settings beyond the protocol; the table's "

@@ -95,6 +95,12 @@ def test_table_rows_statistics_and_commands(grid, capsys):
     with run_dir_lock(cells["Hopper.run.perfect/bc"].run_dir(logs, 2)):
         assert cli.main(["table", str(path), "--results-dir", str(logs), "--out", str(out)]) == 0
         assert (out / "tiny.md").read_text() == md
+    # the live state is `run`'s to say
+    capsys.readouterr()
+    assert cli.main(["run", str(path), "--results-dir", str(logs), "--tasks", "Hopper.run.perfect", "--algos", "bc",
+                     "--dry-run"]) == 0
+    assert "[benchmark] resumes Hopper.run.perfect/bc seed 2: unfinished, resumes at step 20 of 50" in \
+        capsys.readouterr().out
     assert f"| UnitreeH1.walk.real | gail | 1 2 | not finished | {cost.hours_text(2 * h1_hours)} |" in missing
     total = sum(len(r.missing) * cost.run_hours(load_protocol(path), r.cell)
                 for r in results_of(load_protocol(path), list(cells.values()), logs))
