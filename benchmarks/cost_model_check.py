@@ -34,9 +34,9 @@ def main() -> None:
     ratios: dict[str, list[float]] = defaultdict(list)
     print(f"{'cell':44s} {'model s':>8s}  measured s (per seed)   ratio")
     for cell in all_cells(proto):
-        walls = [e["wall_time"] for s in cell.seeds
-                 if (e := finished_eval(cell, cell.run_dir(proto.results_dir, s))) and "wall_time" in e
-                 and trained_on_cpu(cell.run_dir(proto.results_dir, s))]
+        run_dirs = [cell.run_dir(proto.results_dir, s) for s in cell.seeds]
+        walls = [e["wall_time"] for d in run_dirs
+                 if (e := finished_eval(cell, d)) and "wall_time" in e and trained_on_cpu(d)]
         if not walls:
             continue
         model_s = cost.run_hours(proto, cell) * 3600

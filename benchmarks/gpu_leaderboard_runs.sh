@@ -34,7 +34,7 @@ export PYTHONUNBUFFERED=1 MUJOCO_GL=${MUJOCO_GL:-disable} WANDB_MODE=${WANDB_MOD
 mkdir -p "$OUT/logs"
 stamp() { echo "[gpu_leaderboard_runs $(date +%T) +${SECONDS}s] $*"; }
 
-# one line per run: "<run dir>\t<command>", from the protocol (exact row label, unlike --algos, which also takes
+# the results dir, then one line per run: "<run dir>\t<command>", from the protocol (exact row label, unlike --algos, which also takes
 # an algorithm for all its rows)
 plan=$($PY - "$PROTOCOL" "$RESULTS_DIR" $SAC_RUNS $CPU_RUNS <<'EOF'
 import sys
@@ -45,6 +45,7 @@ from loco_il.benchmark.protocol import load_protocol
 proto = load_protocol(sys.argv[1])
 results = Path(sys.argv[2]) if sys.argv[2] else proto.results_dir
 cells = {c.key: c for c in all_cells(proto)}
+print(results)
 for spec in sys.argv[3:]:
     key, _, seed = spec.rpartition("/")
     if key not in cells or not seed.isdigit():
@@ -53,6 +54,7 @@ for spec in sys.argv[3:]:
     print(f"{cell.run_dir(results, int(seed))}\t{cell_command(proto, cell, [int(seed)], results_dir=results)}")
 EOF
 ) || exit 2
+root=$(head -n 1 <<< "$plan"); plan=$(tail -n +2 <<< "$plan")
 n_sac=$(wc -w <<< "$SAC_RUNS")
 stamp "start: $n_sac SAC-based runs, $(wc -w <<< "$CPU_RUNS") CPU runs; $(nvidia-smi --query-gpu=name --format=csv,noheader 2>/dev/null)"
 
@@ -93,7 +95,6 @@ for k in "${!dirs[@]}"; do
     else state=unfinished; fi
     echo "$d: $state (last logged step ${last:-none})" >> "$OUT/summary.txt"
 done
-root=$(dirname "$(dirname "$(dirname "${dirs[0]}")")")   # the results dir: <root>/<Task-ID>/<row>/seed<k>
 rel() { for d in "$@"; do echo "${d#"$root"/}"; done; }
 if [[ ${#finished[@]} -gt 0 ]]; then
     (cd "$root" && rel "${finished[@]}" | sed 's|$|/eval.json|; p; s|eval.json$|log.csv|; p; s|log.csv$|config.yaml|' |

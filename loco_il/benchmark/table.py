@@ -17,7 +17,7 @@ from typing import Any, Sequence
 from loco_il.benchmark import availability, commands, cost, paths
 from loco_il.benchmark.cells import Cell
 from loco_il.benchmark.protocol import Protocol
-from loco_il.benchmark.status import FINISHED, NEW, NOT_FINISHED, RunState, finished_eval, run_state
+from loco_il.benchmark.status import FINISHED, NOT_FINISHED, RunState, finished_eval, run_state
 from loco_il.evaluation import leaderboard
 
 NORMALIZED, RETURN = "normalized", "return"
@@ -208,12 +208,11 @@ def markdown(proto: Protocol, results: Sequence[CellResult], cost_text: str, cur
 def state_text(states: Sequence[RunState]) -> str:
     """The missing runs of a cell in a few words: "not finished", "seed 0: trained to 5000 steps, past the budget
     300 ...; seeds 1 2: not finished" (the table reads results alone, see `status.run_state(live=False)`)."""
-    grouped = (NEW, NOT_FINISHED)
-    parts = [s.describe() for s in states if s.state not in grouped]
-    for state in grouped:
-        seeds = [str(s.seed) for s in states if s.state == state]
-        if seeds:
-            parts.append(state if not parts else f"seed{'s' if len(seeds) > 1 else ''} {' '.join(seeds)}: {state}")
+    parts = [s.describe() for s in states if s.state != NOT_FINISHED]
+    seeds = [str(s.seed) for s in states if s.state == NOT_FINISHED]
+    if seeds:
+        parts.append(NOT_FINISHED if not parts
+                     else f"seed{'s' if len(seeds) > 1 else ''} {' '.join(seeds)}: {NOT_FINISHED}")
     return "; ".join(parts)
 
 

@@ -19,7 +19,7 @@ def _cpu_model() -> str | None:
     return platform.processor() or None
 
 
-def usable_cpus() -> int:
+def _usable_cpus() -> int:
     """CPU cores this process may run on (its affinity, e.g. a container's share), else the machine's count."""
     try:
         return len(os.sched_getaffinity(0))
@@ -33,7 +33,7 @@ def machine_record(device: str) -> dict[str, Any]:
     import numpy
     import torch
 
-    record: dict[str, Any] = {"cpu": _cpu_model(), "cpu_cores": usable_cpus(), "device": device}
+    record: dict[str, Any] = {"cpu": _cpu_model(), "cpu_cores": _usable_cpus(), "device": device}
     if device.startswith("cuda") and torch.cuda.is_available():
         record["gpu"] = torch.cuda.get_device_name(torch.device(device))
     record["versions"] = {"python": platform.python_version(), "torch": torch.__version__,
@@ -41,4 +41,4 @@ def machine_record(device: str) -> dict[str, Any]:
     return record
 
 
-__all__ = ["machine_record", "usable_cpus"]
+__all__ = ["machine_record"]
