@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Sequence
 
-from loco_il.benchmark import availability, commands, cost, paths
+from loco_il.benchmark import availability, commands, cost, paths, seed_detail
 from loco_il.benchmark.cells import Cell
 from loco_il.benchmark.protocol import Protocol
 from loco_il.benchmark.status import FINISHED, NOT_FINISHED, RunState, finished_eval, run_state
@@ -34,6 +34,7 @@ class CellResult:
     at: dict[int, tuple[float, float | None, int]] = field(default_factory=dict)   # step -> (mean, ci, n)
     blocked: str | None = None
     command: str = ""
+    seeds_detail: list[seed_detail.SeedRun] = field(default_factory=list)   # the finished runs, seed by seed
 
     @property
     def missing(self) -> list[RunState]:
@@ -73,6 +74,7 @@ def cell_result(proto: Protocol, cell: Cell, states: Sequence[RunState], blocked
     res.metric = NORMALIZED if normalized else RETURN
     res.score = ((res.summary["normalized_mean"], res.summary["normalized_ci95"]) if normalized
                  else (res.summary["return_mean"], res.summary["return_ci95"]))
+    res.seeds_detail = seed_detail.seed_runs(res.runs, normalized)
     logs = [read_csv(Path(r["run_dir"]) / "log.csv") for r in res.runs]
     for step in cell.family.report_at:
         values = [v for v in (score_at(rows, step, cell.family.eval_every, res.metric) for rows in logs)
@@ -193,6 +195,7 @@ def markdown(proto: Protocol, results: Sequence[CellResult], cost_text: str, cur
                 and any(r.cell.task_id == t for r in rows)]
         if figs:
             lines += ["Learning curves: " + ", ".join(figs), ""]
+    lines += seeds_section(proto, results)
     lines += missing_section(proto, results, results_dir)
     lines += ["## Settings", "", "| family | algorithms | budget | evaluation every |", "|---|---|---|---|"]
     for fam in proto.families:
@@ -203,6 +206,32 @@ def markdown(proto: Protocol, results: Sequence[CellResult], cost_text: str, cur
         lines.append(f"- `{var.label}`: {var.algo} with `{settings}`" + (f" ({var.note})" if var.note else ""))
     lines += ["", "## Estimated cost", "", "```", cost_text, "```", ""]
     return "\n".join(lines)
+
+
+SEEDS_SECTION = "## Finished runs, seed by seed"
+
+
+def seeds_section(proto: Protocol, results: Sequence[CellResult]) -> list[str]:
+    """Every cell with finished runs, one row each: its seeds' final scores, falls, episode lengths and wall times
+    (`seed_detail`), in the order of the parts above."""
+    rows = [r for part in proto.parts for r in results if r.cell.part == part.name and r.runs]
+    if not rows:
+        return []
+    n = int(dict(proto.eval).get("final_episodes", 10))
+    lines = [SEEDS_SECTION, "",
+             f"Per seed, in seed order: the final score, the final evaluation's episodes ending by a fall (early "
+             f"termination; of {n}), their mean length in env steps, and the wall time per run as "
+             f"train.py measured it (summed over resumes; \"(cuda)\" where the run's config says `device=cuda`).", "",
+             "| task | algorithm | seeds | final per seed | episodes falling per seed | mean episode length per seed "
+             "| wall per run |", "|---|---|---|---|---|---|---|"]
+    for r in rows:
+        digits = 2 if r.metric == NORMALIZED else 1
+        runs = r.seeds_detail
+        lines.append(f"| {r.cell.task_id} | {r.cell.label} | {' '.join(str(x.seed) for x in runs)} | "
+                     f"{seed_detail.finals_text(runs, digits)}{'' if r.metric == NORMALIZED else ' (return)'} | "
+                     f"{seed_detail.falls_text(runs, n)} | {seed_detail.lengths_text(runs)} | "
+                     f"{seed_detail.wall_text(runs)} |")
+    return lines + [""]
 
 
 def state_text(states: Sequence[RunState]) -> str:
@@ -263,7 +292,7 @@ def to_csv(proto: Protocol, results: Sequence[CellResult]) -> str:
     w = csv.writer(buf, lineterminator="\n")
     w.writerow([*CSV_HEAD, *(f"at_{s}_{k}" for s in steps for k in ("mean", "ci95", "n")), "return_mean",
                 "return_ci95", "normalized_mean", "normalized_ci95", "published", "missing_seeds", "blocked",
-                "command"])
+                "command", *seed_detail.CSV_COLUMNS])
     num = lambda x: "" if x is None else f"{x:.4f}"  # noqa: E731
     for r in results:
         c, s = r.cell, r.summary or {}
@@ -276,7 +305,8 @@ def to_csv(proto: Protocol, results: Sequence[CellResult]) -> str:
                     r.metric if r.runs else "", num(r.score[0] if r.score else None),
                     num(r.score[1] if r.score else None), *at, num(s.get("return_mean")), num(s.get("return_ci95")),
                     num(s.get("normalized_mean")), num(s.get("normalized_ci95")), s.get("published") or "",
-                    " ".join(str(x.seed) for x in r.missing), r.blocked or "", r.command])
+                    " ".join(str(x.seed) for x in r.missing), r.blocked or "", r.command,
+                    *seed_detail.csv_values(r.seeds_detail)])
     return buf.getvalue()
 
 

@@ -37,15 +37,19 @@ def tiny_protocol(**changes: Any) -> dict[str, Any]:
 
 def finished_run(run_dir: Path, task_id: str, name: str, seed: int, steps: int, final: float | None,
                  ret: float, curve: Sequence[tuple[int, float | None, float]], unit: str = "env steps",
-                 algorithm: str | None = None) -> None:
-    """A run dir as train.py leaves it: eval.json (final normalized score `final`, return `ret`) and log.csv rows
-    (step, normalized score, return)."""
+                 algorithm: str | None = None, details: dict[str, Any] | None = None,
+                 device: str | None = None) -> None:
+    """A run dir as train.py leaves it: eval.json (final normalized score `final`, return `ret`, and any further
+    `details`, e.g. terminated, episodes, length_mean, wall_time), log.csv rows (step, normalized score, return) and,
+    where `device` is given, a config.yaml that names it."""
     run_dir.mkdir(parents=True, exist_ok=True)
     body, task, dataset = task_id.split(".")
     (run_dir / "eval.json").write_text(json.dumps({
         "task_id": task_id, "task": f"{body}.{task}", "dataset_type": dataset, "algorithm": algorithm or name,
         "name": name, "seed": seed, "steps": steps, "step_unit": unit, "return_mean": ret,
-        "normalized_score": final}))
+        "normalized_score": final, **(details or {})}))
+    if device is not None:
+        (run_dir / "config.yaml").write_text(yaml.safe_dump({"device": device, "seed": seed}))
     with open(run_dir / "log.csv", "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(["step", "env_steps", "eval_return_mean", "normalized_score"])

@@ -37,13 +37,18 @@ def grid(tmp_path, monkeypatch):
     path = write_protocol(tmp_path, "tiny", tiny_protocol())
     logs = tmp_path / "logs"
     hop = logs / "Hopper.run.perfect"
+    gail_details = [{"terminated": 3, "episodes": 10, "length_mean": 812.4, "wall_time": 1200.4},
+                    {"terminated": 0, "episodes": 10, "length_mean": 1000.0, "wall_time": 1310.6},
+                    {"terminated": 1, "episodes": 10, "length_mean": 955.5, "wall_time": 95.2}]
     for seed, (a, b, c) in enumerate([(0.2, 0.5, 0.8), (0.3, 0.6, 0.9), (0.4, 0.7, 1.0)]):
         steps = (104, 208) if seed == 2 else (100, 200)
         finished_run(hop / "gail" / f"seed{seed}", "Hopper.run.perfect", "gail", seed, 300, c, 1000.0 * c,
-                     [(steps[0], a, 100 * a), (steps[1], b, 100 * b), (300, c, 100 * c)])
-    for seed, score in ((0, 0.95), (1, 1.05)):
+                     [(steps[0], a, 100 * a), (steps[1], b, 100 * b), (300, c, 100 * c)],
+                     details=gail_details[seed], device="cuda" if seed == 2 else "cpu")
+    for seed, score in ((0, 0.95), (1, 1.05)):     # bc seed 1 evaluated 8 episodes, seed 0 says nothing more
         finished_run(hop / "bc" / f"seed{seed}", "Hopper.run.perfect", "bc", seed, 50, score, 3000.0 + seed,
-                     [(10, 0.5, 1.0), (50, score, 2.0)], unit="gradient steps")
+                     [(10, 0.5, 1.0), (50, score, 2.0)], unit="gradient steps",
+                     details={"terminated": 2, "episodes": 8, "length_mean": 700.0} if seed else None)
     (hop / "bc" / "seed2").mkdir(parents=True)
     (hop / "bc" / "seed2" / "checkpoint.json").write_text(json.dumps({"step": 20}))
     finished_run(hop / "vail" / "seed0", "Hopper.run.perfect", "vail", 0, 5000, 0.5, 50.0, [(5000, 0.5, 50.0)])
@@ -151,6 +156,28 @@ def test_table_csv(grid):
     assert not (out / "curves").exists()
 
 
+def test_finished_runs_seed_by_seed(grid):
+    """Each finished cell's seeds: final score, falls, episode lengths, wall-time range per device, in the page and
+    the CSV; what a run's eval.json does not hold is "?" (page) or "nan" (CSV), never a guess."""
+    path, logs, out = grid
+    cli.main(["table", str(path), "--results-dir", str(logs), "--out", str(out), "--no-plots"])
+    md = (out / "tiny.md").read_text()
+    section = md.split("## Finished runs, seed by seed")[1].split("## Missing runs")[0]
+    rows = [line for line in section.splitlines() if line.startswith("| ") and not line.startswith("| task")]
+    assert rows == [
+        "| Hopper.run.perfect | gail | 0 1 2 | 0.80, 0.90, 1.00 | 3, 0, 1 | 812, 1000, 956 | 1200-1311 s, 95 s (cuda) |",
+        "| Hopper.run.perfect | bc | 0 1 | 0.95, 1.05 | ?, 2/8 | ?, 700 | ? |",
+        "| UnitreeH1.walk.real | gail | 0 | 523.4 (return) | ? | ? | ? |"]
+    assert "of 10)" in section       # the protocol's final_episodes
+    table_rows = {(r["task"], r["algorithm"]): r for r in csv.DictReader(io.StringIO((out / "tiny.csv").read_text()))}
+    gail = table_rows[("Hopper.run.perfect", "gail")]
+    assert (gail["final_per_seed"], gail["falls_per_seed"], gail["length_per_seed"], gail["wall_time_per_seed"],
+            gail["device_per_seed"]) == ("0.8000 0.9000 1.0000", "3 0 1", "812.4 1000.0 955.5", "1200.4 1310.6 95.2",
+                                         "cpu cpu cuda")
+    assert table_rows[("Hopper.run.perfect", "bc")]["episodes_per_seed"] == "nan 8"
+    assert table_rows[("Hopper.run.perfect", "vail")]["final_per_seed"] == ""      # no finished run
+
+
 def test_score_along_the_way_is_the_first_evaluation_at_or_after_the_step():
     rows = [{"step": 50.0, "normalized_score": 0.1}, {"step": 104.0, "normalized_score": 0.4},
             {"step": 208.0, "normalized_score": 0.6}]
@@ -209,3 +236,19 @@ def test_the_readme_table_is_the_one_the_committed_logs_give():
     fresh = overview.matrix(proto, results_of(proto, select(proto), proto.results_dir))
     assert overview.replace_block(readme, "small", fresh, "README.md") == readme, \
         "stale README table: python -m loco_il.benchmark table small --readme README.md"
+
+
+def test_the_committed_tables_are_the_ones_the_committed_logs_give():
+    """small.md (its seed-by-seed section included) and small.csv are derived state: adding or changing runs in
+    benchmarks/leaderboard/logs/ without `table small` fails here."""
+    from loco_il.benchmark import overview, paths, table
+    proto = load_protocol("small")
+    cells = select(proto)
+    results = results_of(proto, cells, proto.results_dir)
+    figures = {p.stem: str(p.relative_to(paths.TABLE_DIR))
+               for p in (paths.TABLE_DIR / "curves" / proto.name).glob("*.png")}
+    fresh_md = table.markdown(proto, results, cost.summary_text(proto, cells), figures, proto.results_dir,
+                              overview=overview.matrix(proto, results))
+    stale = "stale leaderboard table: python -m loco_il.benchmark table small --readme README.md"
+    assert (paths.TABLE_DIR / "small.md").read_text() == fresh_md, stale
+    assert (paths.TABLE_DIR / "small.csv").read_text() == table.to_csv(proto, results), stale
