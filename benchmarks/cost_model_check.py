@@ -18,12 +18,12 @@ from collections import defaultdict
 from loco_il.benchmark import cost
 from loco_il.benchmark.cells import all_cells
 from loco_il.benchmark.protocol import load_protocol
+from loco_il.benchmark.seed_detail import DEFAULT_DEVICE, run_device
 from loco_il.benchmark.status import finished_eval
-from loco_il.evaluation.runs import load_run_config
 
 
 def trained_on_cpu(run_dir) -> bool:
-    return str(load_run_config(run_dir).get("device", "cpu")) == "cpu"
+    return run_device(run_dir) == DEFAULT_DEVICE
 
 
 def main() -> None:

@@ -13,10 +13,10 @@ import argparse
 import os
 import sys
 from pathlib import Path
-from typing import Sequence
+from typing import Any, Sequence
 
 from loco_il.benchmark import availability, commands, cost, launch, paths, status
-from loco_il.benchmark.cells import Selection, select
+from loco_il.benchmark.cells import Cell, Selection, select
 from loco_il.benchmark.protocol import Protocol, ProtocolError, load_protocol
 
 #: files of a run dir that only resuming needs (`prune` deletes them once the run has finished)
@@ -118,6 +118,14 @@ def cmd_run(args: argparse.Namespace, echo=print) -> int:
     return launch.execute(launches, args.overrides, env=dict(os.environ), echo=echo)
 
 
+def table_page(proto: Protocol, cells: Sequence[Cell], results: Sequence[Any], figures: dict[str, str],
+               results_dir: Path, headline: Sequence[str]) -> str:
+    """The protocol's leaderboard page (`<protocol>.md`): its tables, `figures` (task -> path of its learning-curve
+    figure, relative to the page), the overview `headline` and the cost estimate."""
+    from loco_il.benchmark import table
+    return table.markdown(proto, results, cost.summary_text(proto, cells), figures, results_dir, overview=headline)
+
+
 def cmd_table(args: argparse.Namespace, echo=print) -> int:
     from loco_il.benchmark import curves, overview, table
     from loco_il.utils.atomic import atomic_open
@@ -143,7 +151,7 @@ def cmd_table(args: argparse.Namespace, echo=print) -> int:
         except overview.MarkerError as err:
             echo(f"[benchmark] error: {err}")
             return 2
-    md = table.markdown(proto, results, cost.summary_text(proto, cells), figures, results_dir, overview=headline)
+    md = table_page(proto, cells, results, figures, results_dir, headline)
     out.mkdir(parents=True, exist_ok=True)
     for suffix, text in ((".md", md), (".csv", table.to_csv(proto, results))):
         with atomic_open(out / f"{proto.name}{suffix}", "w") as fh:

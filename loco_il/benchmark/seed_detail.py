@@ -11,9 +11,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
-import yaml
+from loco_il.evaluation.runs import load_run_config
 
-#: the device train.py's config names when none is given; runs on it carry no device note
+#: the device of train.py's default config (experiment_configs/config.yaml); runs on it carry no device note
 DEFAULT_DEVICE = "cpu"
 
 
@@ -29,12 +29,11 @@ class SeedRun:
 
 
 def run_device(run_dir: Path) -> str:
-    """The `device` of a run's saved config (`config.yaml`), or the default where the run dir has none."""
-    path = Path(run_dir) / "config.yaml"
-    if not path.is_file():
+    """The `device` of a run's saved config (`config.yaml`); the config's default (cpu) where the run dir has no
+    config or the config no device."""
+    if not (Path(run_dir) / "config.yaml").is_file():
         return DEFAULT_DEVICE
-    config = yaml.safe_load(path.read_text()) or {}
-    return str(config.get("device") or DEFAULT_DEVICE)
+    return str((load_run_config(run_dir) or {}).get("device") or DEFAULT_DEVICE)
 
 
 def seed_runs(runs: Sequence[Mapping[str, Any]], normalized: bool) -> list[SeedRun]:

@@ -113,11 +113,16 @@ def _pm(mean: float | None, ci: float | None, digits: int) -> str:
     return f"{mean:.{digits}f}" if ci is None else f"{mean:.{digits}f} ± {ci:.{digits}f}"
 
 
+def metric_format(res: CellResult) -> tuple[int, str]:
+    """How a cell's scores are written: (decimals, suffix); returns, where there is no baseline, are marked."""
+    return (2, "") if res.metric == NORMALIZED else (1, " (return)")
+
+
 def score_text(res: CellResult, value: tuple[float, float | None] | None) -> str:
     if value is None:
         return "—"
-    digits = 2 if res.metric == NORMALIZED else 1
-    return _pm(value[0], value[1], digits) + ("" if res.metric == NORMALIZED else " (return)")
+    digits, suffix = metric_format(res)
+    return _pm(value[0], value[1], digits) + suffix
 
 
 def report_steps(proto: Protocol) -> list[int]:
@@ -225,10 +230,10 @@ def seeds_section(proto: Protocol, results: Sequence[CellResult]) -> list[str]:
              "| task | algorithm | seeds | final per seed | episodes falling per seed | mean episode length per seed "
              "| wall per run |", "|---|---|---|---|---|---|---|"]
     for r in rows:
-        digits = 2 if r.metric == NORMALIZED else 1
+        digits, suffix = metric_format(r)
         runs = r.seeds_detail
         lines.append(f"| {r.cell.task_id} | {r.cell.label} | {' '.join(str(x.seed) for x in runs)} | "
-                     f"{seed_detail.finals_text(runs, digits)}{'' if r.metric == NORMALIZED else ' (return)'} | "
+                     f"{seed_detail.finals_text(runs, digits)}{suffix} | "
                      f"{seed_detail.falls_text(runs, n)} | {seed_detail.lengths_text(runs)} | "
                      f"{seed_detail.wall_text(runs)} |")
     return lines + [""]

@@ -227,28 +227,32 @@ def test_readme_without_markers_is_refused_before_anything_is_written(grid, caps
     assert "no such file" in capsys.readouterr().out
 
 
-def test_the_readme_table_is_the_one_the_committed_logs_give():
+STALE = "stale leaderboard table: python -m loco_il.benchmark table small --readme README.md"
+
+
+@pytest.fixture(scope="module")
+def committed_small():
+    """The `small` protocol, its cells and their results from the committed logs (read once for the tests below)."""
+    proto = load_protocol("small")
+    cells = select(proto)
+    return proto, cells, results_of(proto, cells, proto.results_dir)
+
+
+def test_the_readme_table_is_the_one_the_committed_logs_give(committed_small):
     """Adding runs to benchmarks/leaderboard/logs/ without `table small --readme README.md` fails here."""
     from loco_il.benchmark import overview, paths
-    from loco_il.benchmark.table import results_of
-    proto = load_protocol("small")
+    proto, _, results = committed_small
     readme = (paths.ROOT / "README.md").read_text()
-    fresh = overview.matrix(proto, results_of(proto, select(proto), proto.results_dir))
-    assert overview.replace_block(readme, "small", fresh, "README.md") == readme, \
-        "stale README table: python -m loco_il.benchmark table small --readme README.md"
+    assert overview.replace_block(readme, "small", overview.matrix(proto, results), "README.md") == readme, STALE
 
 
-def test_the_committed_tables_are_the_ones_the_committed_logs_give():
+def test_the_committed_tables_are_the_ones_the_committed_logs_give(committed_small):
     """small.md (its seed-by-seed section included) and small.csv are derived state: adding or changing runs in
     benchmarks/leaderboard/logs/ without `table small` fails here."""
     from loco_il.benchmark import overview, paths, table
-    proto = load_protocol("small")
-    cells = select(proto)
-    results = results_of(proto, cells, proto.results_dir)
+    proto, cells, results = committed_small
     figures = {p.stem: str(p.relative_to(paths.TABLE_DIR))
                for p in (paths.TABLE_DIR / "curves" / proto.name).glob("*.png")}
-    fresh_md = table.markdown(proto, results, cost.summary_text(proto, cells), figures, proto.results_dir,
-                              overview=overview.matrix(proto, results))
-    stale = "stale leaderboard table: python -m loco_il.benchmark table small --readme README.md"
-    assert (paths.TABLE_DIR / "small.md").read_text() == fresh_md, stale
-    assert (paths.TABLE_DIR / "small.csv").read_text() == table.to_csv(proto, results), stale
+    fresh_md = cli.table_page(proto, cells, results, figures, proto.results_dir, overview.matrix(proto, results))
+    assert (paths.TABLE_DIR / "small.md").read_text() == fresh_md, STALE
+    assert (paths.TABLE_DIR / "small.csv").read_text() == table.to_csv(proto, results), STALE
