@@ -127,7 +127,7 @@ def table_page(proto: Protocol, cells: Sequence[Cell], results: Sequence[Any], f
 
 
 def cmd_table(args: argparse.Namespace, echo=print) -> int:
-    from loco_il.benchmark import curves, overview, table
+    from loco_il.benchmark import curves, doc_block, overview, table
     from loco_il.utils.atomic import atomic_open
     proto = load_protocol(args.protocol)
     cells = select(proto)
@@ -148,7 +148,7 @@ def cmd_table(args: argparse.Namespace, echo=print) -> int:
             return 2
         try:
             readme_text = overview.replace_block(readme.read_text(), proto.name, headline, where=str(readme))
-        except overview.MarkerError as err:
+        except doc_block.MarkerError as err:
             echo(f"[benchmark] error: {err}")
             return 2
     md = table_page(proto, cells, results, figures, results_dir, headline)

@@ -1,7 +1,7 @@
 """The headline of a leaderboard: one row per task, one column per algorithm, the final score in each cell.
 
 `matrix` builds it from `table.cell_result`s (only tasks and algorithms with finished runs appear, so it grows as
-the grid fills); `replace_block` puts it into a document (the README) between two marker lines,
+the grid fills); `replace_block` puts it into a document (the README) between two marker lines (`doc_block`),
 
     <!-- leaderboard:small -->
     ...generated...
@@ -14,18 +14,16 @@ from __future__ import annotations
 
 from typing import Sequence
 
+from loco_il.benchmark import doc_block
 from loco_il.benchmark.protocol import Protocol
 from loco_il.benchmark.table import CellResult, score_text
 
 NOT_IN_PART = "n/a"
 
 
-class MarkerError(ValueError):
-    """A document without (or with broken) leaderboard markers: one line naming the markers to add."""
-
-
-def markers(protocol_name: str) -> tuple[str, str]:
-    return f"<!-- leaderboard:{protocol_name} -->", f"<!-- /leaderboard:{protocol_name} -->"
+def block_name(protocol_name: str) -> str:
+    """The name of the protocol's leaderboard block in a document (see `doc_block`)."""
+    return f"leaderboard:{protocol_name}"
 
 
 def _cell_text(res: CellResult) -> str:
@@ -55,14 +53,8 @@ def matrix(proto: Protocol, results: Sequence[CellResult]) -> list[str]:
 
 
 def replace_block(text: str, protocol_name: str, block: Sequence[str], where: str = "the document") -> str:
-    """`text` with the lines between the protocol's two marker lines replaced by `block`."""
-    start, end = markers(protocol_name)
-    i, j = text.find(start), text.find(end)
-    if i < 0 or j < 0 or j < i:
-        raise MarkerError(f"{where} has no '{start}' ... '{end}' block; add the two marker lines, in that order, "
-                          "where the leaderboard table goes")
-    head = text[:i + len(start)]
-    return head + "\n" + "\n".join(block) + "\n" + text[j:]
+    """`text` with the protocol's leaderboard block replaced by `block`."""
+    return doc_block.replace_block(text, block_name(protocol_name), block, where)
 
 
-__all__ = ["MarkerError", "markers", "matrix", "replace_block"]
+__all__ = ["block_name", "matrix", "replace_block"]
