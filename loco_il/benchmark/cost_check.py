@@ -20,6 +20,7 @@ from loco_il.benchmark.protocol import Protocol
 from loco_il.benchmark.seed_detail import DEFAULT_DEVICE, run_device
 from loco_il.benchmark.status import finished_eval
 
+
 def block_name(protocol_name: str) -> str:
     """The name of the document block (`doc_block`) that holds the protocol's report in RESULTS.md."""
     return f"cost-model-check:{protocol_name}"
