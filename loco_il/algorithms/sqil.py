@@ -13,6 +13,8 @@ V_target(s') = min_i Q_target_i(s', a') - alpha log pi(a'|s'), and each head reg
 """
 from __future__ import annotations
 
+import math
+
 import torch
 
 from .common.sac import OffPolicyILAgent
@@ -41,3 +43,9 @@ class SQIL(OffPolicyILAgent):
         n_e = c["n_expert"]
         rewards = sqil_rewards(n_e, c["q"].shape[-1] - n_e, self.device)
         return sqil_critic_loss(c["q"], rewards, c["v_next"], c["absorbing"], self.gamma)
+
+    def q_upper_bound(self) -> float:
+        """(1 + alpha |A| log 2) / (1 - gamma): rewards are at most 1 per step, and the soft term -alpha log pi
+        averages at most alpha |A| log 2 (no density on the action box [-1, 1]^|A| has more entropy than the
+        uniform one)."""
+        return (1.0 + float(self.sac.alpha) * self.act_dim * math.log(2.0)) / (1.0 - self.gamma)

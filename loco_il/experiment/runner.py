@@ -393,7 +393,7 @@ class Runner:
     def _restore(self, ckpt: dict | None) -> None:
         """Counters, run time, W&B id and the training returns since the last evaluation: fresh, or those of `ckpt`
         (a resume or a fork), whose agent and env state are loaded too."""
-        self.counters = {"step": 0, "env_steps": 0, "episodes": 0, "n_evals": 0}
+        self.counters = {"step": 0, "env_steps": 0, "episodes": 0, "n_evals": 0, "critic_diverged_at": None}
         self.wall_before, self.wandb_id = 0.0, None
         self.window: dict[str, list] = {"returns": []}   # training returns since the last evaluation
         if ckpt is None:
@@ -479,6 +479,19 @@ class Runner:
                           f"{row['eval_return_std']:.2f}" + (f", normalized {score:.3f}" if score is not None else "")
                           + (f", actor average {ema:.3f}" if ema is not None else "")
                           + (" (all episodes identical)" if identical else ""))
+        self._note_critic_divergence(row)
+
+    def _note_critic_divergence(self, row: dict) -> None:
+        """Warn once when an off-policy learner's critic has left the values its rewards allow: every evaluation
+        from then on scores a policy trained on a diverged critic. The first such step goes into eval.json."""
+        check = getattr(self.agent, "critic_divergence", None)
+        if check is None or "fit/q_mean" not in row or self.counters.get("critic_diverged_at") is not None:
+            return
+        note = check(row["fit/q_mean"])
+        if note is not None:
+            self.counters["critic_diverged_at"] = row["step"]
+            self.logger.write(f"[loco_il] warning at step {row['step']}: {note}; its evaluations from here on score "
+                              "a policy trained on a diverged critic (eval.json: critic_diverged_at)")
 
     def _stop_if_asked(self, stop: StopFlag, step: int) -> None:
         """End the run like a killed one when a stop signal arrived or `stop_after_steps` is reached."""
@@ -588,6 +601,8 @@ class Runner:
                   "wall_time": round(wall, 3), **{k: v for k, v in res.items() if k != "obs"},
                   "normalized_score": score, "normalized_score_note": note, "baseline": base,
                   "expert_dataset_return": self.train_data.info.get("expert_return_mean"),
+                  # the first evaluation step at which the critic had diverged (off-policy learners), else None
+                  "critic_diverged_at": counters.get("critic_diverged_at"),
                   "n_expert_trajectories": self.train_data.n_trajectories,
                   "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
                   # where the final evaluation ran (a resumed run may have trained elsewhere before)

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 from types import SimpleNamespace
 
 import numpy as np
@@ -277,6 +278,31 @@ def test_sqil_agent_relabels_expert_1_agent_0():
     y = torch.cat([torch.ones(5), torch.zeros(7)]) + 0.99 * (torch.minimum(t1, t2) - agent.sac.alpha * logp)
     q1, q2 = agent.sac.critic(torch.cat([expert["obs"], policy["obs"]]), torch.cat([expert["actions"], policy["actions"]]))
     assert loss.item() == pytest.approx(((q1 - y) ** 2).mean().item() + ((q2 - y) ** 2).mean().item(), rel=1e-5)
+
+
+def test_sqil_q_bound_flags_a_diverged_critic():
+    agent = _agent(SQIL, init_alpha=0.01, learn_alpha=False)
+    bound = (1.0 + 0.01 * ACT_DIM * math.log(2.0)) / (1.0 - 0.99)
+    assert agent.q_upper_bound() == pytest.approx(bound)
+    assert agent.critic_divergence(torch.tensor(9.9 * bound)) is None
+    note = agent.critic_divergence(torch.tensor(11.0 * bound))
+    assert note.startswith("the critic diverged") and "SQIL" in note and f"{bound:.4g}" in note
+    assert agent.critic_divergence(float("nan")) is not None
+    # a learner whose method does not bound Q is never flagged
+    assert _agent(IQLearn).critic_divergence(1e12) is None
+
+
+def test_runner_warns_once_when_the_critic_diverges():
+    from loco_il.experiment.runner import Runner
+    runner = Runner.__new__(Runner)          # only the pieces the check reads
+    runner.agent, runner.counters, lines = _agent(SQIL), {"critic_diverged_at": None}, []
+    runner.logger = SimpleNamespace(write=lines.append)
+    bound = runner.agent.q_upper_bound()
+    for step, q in [(10, 2.0 * bound), (20, 50.0 * bound), (30, 60.0 * bound)]:
+        runner._note_critic_divergence({"step": step, "fit/q_mean": torch.tensor(q)})
+    runner._note_critic_divergence({"step": 40})   # rows without a mean Q (e.g. BC) are left alone
+    assert runner.counters["critic_diverged_at"] == 20
+    assert len(lines) == 1 and lines[0].startswith("[loco_il] warning at step 20: the critic diverged")
 
 
 def test_iqlearn_agent_v0_loss_reads_v_on_expert_states_and_target_next_value():

@@ -10,9 +10,9 @@ import pytest
 from loco_il.benchmark import paths
 
 RUN = "small/Hopper.run.perfect/lsiq/seed0"
-KEPT = ["eval.json", "log.csv", "config.yaml"]
+KEPT = ["eval.json", "log.csv", "log.jsonl", "config.yaml"]
 IGNORED = ["checkpoint.pt", "checkpoint.prev.pt", "checkpoint.json", "final_agent.pt", "final_agent.pt.sha256",
-           "log.jsonl", ".lock", "train.log", ".hydra/config.yaml", "wandb/offline-run-1/run.wandb",
+           ".lock", "train.log", ".hydra/config.yaml", "wandb/offline-run-1/run.wandb",
            "kept/step100.pt"]
 
 

@@ -57,6 +57,7 @@ def test_end_to_end_train_evaluate_and_rerun(env_vars, tmp_path):
     assert all(0 <= r["eval_terminated"] <= r["eval_episodes"] for r in jrows)
     assert all(r["eval_terminated"] not in ("", None) for r in rows)
     assert ev["similarity"]["reference"] == "test split" and ev["similarity"]["nn_distance"] >= 0
+    assert ev["critic_diverged_at"] is None          # BC has no critic to diverge
     # the machine it finished on: CPU and cores, the torch device, the library versions (no host name)
     machine = ev["finished_on"]
     assert machine["device"] == "cpu" and "gpu" not in machine and machine["cpu_cores"] >= 1

@@ -219,6 +219,23 @@ class OffPolicyILAgent(ILAgent):
         finally:
             self.policy_module.load_state_dict(live)
 
+    #: a mean Q this many times `q_upper_bound()` marks a diverged critic: a healthy SQIL run overestimates by up to
+    #: ~1.4x (Humanoid.run.perfect), a diverging one passed 35x within 20k env steps (HumanoidTorque.walk.perfect)
+    DIVERGENCE_FACTOR = 10.0
+
+    def q_upper_bound(self) -> float | None:
+        """The largest mean Q(s, a) the method's rewards allow; None where the method does not bound it."""
+        return None
+
+    def critic_divergence(self, q_mean: float) -> str | None:
+        """One line saying the critic has diverged when `q_mean` (the last update's mean Q) exceeds
+        `DIVERGENCE_FACTOR` times `q_upper_bound()`; None otherwise or without a bound."""
+        bound = self.q_upper_bound()
+        if bound is None or float(q_mean) <= self.DIVERGENCE_FACTOR * bound:   # a NaN Q counts as diverged
+            return None
+        return (f"the critic diverged: mean Q {float(q_mean):.4g} exceeds {self.DIVERGENCE_FACTOR:g}x the "
+                f"{bound:.4g} that {self.pretty_name()}'s rewards allow (gamma {self.gamma:g})")
+
     def conservative_term(self, policy: dict) -> torch.Tensor:
         """`conservative_penalty` at the agent batch's states: K uniform random actions in [-1, 1] (the squashed
         policy's action box) against the stored action, one critic forward for all of them."""
